@@ -1,0 +1,31 @@
+"""dolfin_mpm: the material point method for large-strain granular flow on DOLFINx.
+
+Import this package before ``dolfinx`` or ``petsc4py``: with the PyPI build of DOLFINx its
+libraries must be loaded first (done in :mod:`dolfin_mpm.compat`).
+"""
+
+from dolfin_mpm import compat  # noqa: I001  (must come first)
+from dolfin_mpm.boundary import FixedBC, FrictionalWall, SlipBC
+from dolfin_mpm.grid import Grid
+from dolfin_mpm.io import Output
+from dolfin_mpm.materials import LinearElastic
+from dolfin_mpm.particles import Particles, Sink
+from dolfin_mpm.seeding import seed
+from dolfin_mpm.solver import SimulationError, Solver
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "FixedBC",
+    "FrictionalWall",
+    "Grid",
+    "LinearElastic",
+    "Output",
+    "Particles",
+    "SimulationError",
+    "SlipBC",
+    "Sink",
+    "Solver",
+    "compat",
+    "seed",
+]

@@ -1,0 +1,94 @@
+"""Nodal boundary conditions of the explicit step: fixed, slip and frictional rigid walls.
+
+Each condition corrects the trial nodal velocity ``v* = v + dt a`` on its nodes; the solver
+turns the correction into the contact force ``F_c = m (v - v*) / dt`` of the paper's eq. (4).
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from dolfin_mpm.materials.base import check_range
+
+__all__ = ["BoundaryCondition", "FixedBC", "FrictionalWall", "SlipBC"]
+
+
+def _unit(normal, gdim: int) -> np.ndarray:
+    n = np.asarray(normal, dtype=np.float64).ravel()
+    if n.shape != (gdim,) or not np.linalg.norm(n) > 0:
+        raise ValueError(f"normal must be a non-zero vector of length {gdim}, got {normal!r}")
+    return n / np.linalg.norm(n)
+
+
+@dataclass
+class BoundaryCondition:
+    """Base: a set of grid nodes (local indices, ghosts included)."""
+
+    nodes: np.ndarray
+
+    def __post_init__(self):
+        self.nodes = np.asarray(self.nodes, dtype=np.int64)
+
+    def apply(self, v: np.ndarray) -> None:
+        """Correct the nodal velocities ``v`` (``shape=(num_nodes, gdim)``) in place."""
+        raise NotImplementedError
+
+
+@dataclass
+class FixedBC(BoundaryCondition):
+    """No motion at the nodes (clamped)."""
+
+    def apply(self, v):
+        v[self.nodes] = 0.0
+
+
+@dataclass
+class SlipBC(BoundaryCondition):
+    """Roller: zero velocity normal to a wall of any orientation, free tangential motion.
+
+    Args:
+        normal: wall normal, ``shape=(gdim,)`` (sign irrelevant).
+    """
+
+    normal: tuple = (1.0, 0.0)
+
+    def __post_init__(self):
+        super().__post_init__()
+        self.normal = _unit(self.normal, len(self.normal))
+
+    def apply(self, v):
+        vn = v[self.nodes] @ self.normal
+        v[self.nodes] -= vn[:, None] * self.normal
+
+
+@dataclass
+class FrictionalWall(BoundaryCondition):
+    """Rigid wall with Coulomb friction (unilateral contact).
+
+    Nodes moving into the wall lose their normal velocity; the tangential speed is reduced
+    by ``mu`` times the removed normal speed (stick when that exceeds it). Nodes moving away
+    are left free, so material can separate from the wall.
+
+    Args:
+        normal: outward normal of the material, pointing into the wall, ``shape=(gdim,)``.
+        mu: friction coefficient, >= 0 (``tan`` of the wall friction angle).
+    """
+
+    normal: tuple = (1.0, 0.0)
+    mu: float = 0.0
+
+    def __post_init__(self):
+        super().__post_init__()
+        self.normal = _unit(self.normal, len(self.normal))
+        check_range("mu", self.mu, 0.0, np.inf, closed=(True, False))
+
+    def apply(self, v):
+        vi = v[self.nodes]
+        vn = vi @ self.normal
+        hit = vn > 0.0
+        vt = vi[hit] - vn[hit, None] * self.normal
+        speed = np.linalg.norm(vt, axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            scale = np.where(speed > 0.0, np.maximum(0.0, 1.0 - self.mu * vn[hit] / speed), 0.0)
+        vi[hit] = scale[:, None] * vt
+        v[self.nodes] = vi

@@ -1,0 +1,101 @@
+"""The one place that knows which DOLFINx is installed.
+
+Debian 12 ships DOLFINx 0.5.2; PyPI ships 0.11 (``dolfinx-solver-real``), whose wheels need
+``import dolfinx_solver`` before ``dolfinx`` or ``petsc4py``. Every call whose name or
+signature differs between the two lines is wrapped here; no other module touches a
+version-specific name.
+"""
+
+try:  # The PyPI wheels load their MPI/PETSc libraries on this import.
+    import dolfinx_solver  # noqa: F401
+except ImportError:
+    pass
+
+import dolfinx
+import numpy as np
+from dolfinx import fem, geometry, la
+
+__all__ = [
+    "DOLFINX_VERSION",
+    "bounding_box_tree",
+    "candidate_cells",
+    "cell_dofs",
+    "geometry_dofmap",
+    "petsc_vec",
+    "scalar_space",
+    "scatter_reverse_add",
+    "vector_space",
+]
+
+DOLFINX_VERSION: tuple[int, int] = tuple(int(v) for v in dolfinx.__version__.split(".")[:2])
+_NEW = DOLFINX_VERSION >= (0, 8)
+
+
+def vector_space(msh) -> fem.FunctionSpace:
+    """Vector-valued continuous P1 space on ``msh`` (block size = geometric dimension)."""
+    gdim = msh.geometry.dim
+    if _NEW:
+        return fem.functionspace(msh, ("Lagrange", 1, (gdim,)))
+    return fem.VectorFunctionSpace(msh, ("Lagrange", 1))
+
+
+def scalar_space(msh) -> fem.FunctionSpace:
+    """Scalar continuous P1 space on ``msh``."""
+    if _NEW:
+        return fem.functionspace(msh, ("Lagrange", 1))
+    return fem.FunctionSpace(msh, ("Lagrange", 1))
+
+
+def geometry_dofmap(msh) -> np.ndarray:
+    """Geometry nodes of each cell, ``shape=(num_cells, nodes_per_cell)``."""
+    if _NEW:
+        return np.asarray(msh.geometry.dofmaps[0])
+    dm = msh.geometry.dofmap
+    return dm.array.reshape(len(dm.offsets) - 1, -1)
+
+
+def cell_dofs(V) -> np.ndarray:
+    """Block (node) dofs of each cell of ``V``, ``shape=(num_cells, dofs_per_cell)``."""
+    dm = V.dofmap.list
+    if _NEW:
+        return np.asarray(dm)
+    return dm.array.reshape(len(dm.offsets) - 1, -1)
+
+
+def bounding_box_tree(msh):
+    """Bounding-box tree of the cells of ``msh``."""
+    tdim = msh.topology.dim
+    if _NEW:
+        return geometry.bb_tree(msh, tdim)
+    return geometry.BoundingBoxTree(msh, tdim)
+
+
+def candidate_cells(tree, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Cells whose bounding box holds each point.
+
+    Args:
+        tree: tree from :func:`bounding_box_tree`.
+        points: ``shape=(num_points, 3)``.
+
+    Returns:
+        ``(offsets, cells)``: the candidates of point ``i`` are ``cells[offsets[i]:offsets[i+1]]``.
+    """
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    if _NEW:
+        adj = geometry.compute_collisions_points(tree, points)
+    else:
+        adj = geometry.compute_collisions(tree, points)
+    return np.asarray(adj.offsets), np.asarray(adj.array)
+
+
+def scatter_reverse_add(x) -> None:
+    """Add ghost contributions of the DOLFINx vector ``x`` into their owners."""
+    if _NEW:
+        x.scatter_reverse(la.InsertMode.add)
+    else:
+        x.scatter_reverse(la.ScatterMode.add)
+
+
+def petsc_vec(u):
+    """The PETSc Vec that shares memory with the Function ``u``."""
+    return u.x.petsc_vec if _NEW else u.vector

@@ -1,0 +1,120 @@
+"""The background grid: a DOLFINx mesh, its P1 spaces and the nodal fields of one MPM step."""
+
+from collections.abc import Callable
+
+import numpy as np
+from dolfinx import fem
+
+from dolfin_mpm import compat
+
+__all__ = ["Grid"]
+
+
+class Grid:
+    """Background mesh of affine simplices with lumped nodal fields in DOLFINx Functions.
+
+    Nodal fields live in the degrees of freedom of a vector P1 space ``V`` (and a scalar P1
+    space ``Q`` for the mass), indexed by *node* = block dof, owned nodes first, then ghosts.
+    Each step they are assembled from particles with :meth:`assemble`, which sums ghost
+    contributions into their owners and refreshes the ghosts (correct under MPI).
+
+    Attributes:
+        mesh: the DOLFINx mesh (triangles in 2D, tetrahedra in 3D; ``gdim == tdim``).
+        V, Q: vector and scalar P1 spaces.
+        mass, momentum, f_ext, f_int, f_contact, velocity, acceleration: nodal Functions
+            [kg, kg m/s, N, N, N, m/s, m/s^2] (per metre of depth in 2D).
+        cell_dofs: nodes of each cell, ``shape=(num_cells, gdim + 1)``.
+        node_x: node coordinates, ``shape=(num_nodes, 3)``.
+        h_min: smallest cell height over the local cells [m].
+    """
+
+    def __init__(self, msh):
+        self.mesh = msh
+        self.comm = msh.comm
+        self.gdim = msh.geometry.dim
+        self.tdim = msh.topology.dim
+        if self.gdim != self.tdim or self.tdim not in (2, 3):
+            raise ValueError(
+                f"mesh: need triangles in 2D or tetrahedra in 3D with gdim == tdim, "
+                f"got tdim={self.tdim}, gdim={self.gdim}"
+            )
+        geom_dofs = compat.geometry_dofmap(msh)
+        if geom_dofs.shape[1] != self.tdim + 1:
+            raise ValueError(
+                f"mesh: cells must be affine simplices ({self.tdim + 1} nodes), "
+                f"got {geom_dofs.shape[1]} nodes per cell"
+            )
+        self.V = compat.vector_space(msh)
+        self.Q = compat.scalar_space(msh)
+        self.cell_dofs = compat.cell_dofs(self.V).astype(np.int64)
+        if not np.array_equal(self.cell_dofs, compat.cell_dofs(self.Q)):
+            raise RuntimeError("scalar and vector P1 dofmaps differ; nodal fields cannot share nodes")
+        index_map = self.V.dofmap.index_map
+        self.num_owned_nodes = index_map.size_local
+        self.num_nodes = index_map.size_local + index_map.num_ghosts
+        self.num_cells = self.cell_dofs.shape[0]
+        self.node_x = self.V.tabulate_dof_coordinates()[: self.num_nodes]
+
+        self.mass = fem.Function(self.Q, name="mass")
+        self.momentum = fem.Function(self.V, name="momentum")
+        self.f_ext = fem.Function(self.V, name="f_ext")
+        self.f_int = fem.Function(self.V, name="f_int")
+        self.f_contact = fem.Function(self.V, name="f_contact")
+        self.velocity = fem.Function(self.V, name="velocity")
+        self.acceleration = fem.Function(self.V, name="acceleration")
+
+        # Affine map x = x0 + J xi per cell; barycentric gradients are constant in a cell.
+        X = msh.geometry.x[geom_dofs, : self.gdim]  # (num_cells, gdim+1, gdim)
+        self.x0 = X[:, 0, :].copy()
+        J = np.swapaxes(X[:, 1:, :] - X[:, :1, :], 1, 2)  # (num_cells, gdim, tdim)
+        detJ = np.linalg.det(J)
+        if np.any(np.abs(detJ) <= 0.0):
+            raise ValueError("mesh: degenerate cell with zero volume")
+        self.K = np.linalg.inv(J)  # (num_cells, tdim, gdim): xi = K (x - x0)
+        self.grad_N = np.concatenate([-self.K.sum(axis=1, keepdims=True), self.K], axis=1)
+        factorial = 2.0 if self.tdim == 2 else 6.0
+        self.cell_volume = np.abs(detJ) / factorial
+        facet_measure = _largest_facet_measure(X)
+        self.cell_height = self.tdim * self.cell_volume / facet_measure
+        self.h_min = float(self.cell_height.min()) if self.num_cells else np.inf
+        self.tree = compat.bounding_box_tree(msh)
+
+    def assemble(self, u: fem.Function, values: np.ndarray) -> np.ndarray:
+        """Set ``u`` from per-node local sums, add ghost sums into owners, refresh ghosts.
+
+        Args:
+            u: nodal Function of this grid.
+            values: local sums, ``shape=(num_nodes,)`` or ``(num_nodes, gdim)``.
+
+        Returns:
+            The assembled nodal values as a view, same shape as ``values``.
+        """
+        u.x.array[:] = values.ravel()
+        compat.scatter_reverse_add(u.x)
+        u.x.scatter_forward()
+        return u.x.array.reshape(values.shape)
+
+    def nodes_where(self, predicate: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
+        """Nodes whose coordinates satisfy ``predicate(x)``, ``x.shape=(3, num_points)``."""
+        return fem.locate_dofs_geometrical(self.V, predicate).astype(np.int64)
+
+    def nodes_on_facets(self, tags, value: int) -> np.ndarray:
+        """Nodes on the facets of a facet ``meshtags`` object marked ``value``."""
+        if tags.dim != self.tdim - 1:
+            raise ValueError(f"tags: expected facet tags of dimension {self.tdim - 1}, got {tags.dim}")
+        facets = tags.indices[tags.values == value]
+        return fem.locate_dofs_topological(self.V, self.tdim - 1, facets).astype(np.int64)
+
+
+def _largest_facet_measure(X: np.ndarray) -> np.ndarray:
+    """Length (2D) or area (3D) of the largest facet of each simplex, ``X.shape=(n, d+1, d)``."""
+    d = X.shape[2]
+    measures = []
+    for omit in range(d + 1):  # loop over the d+1 facets of a simplex, not over cells
+        F = np.delete(X, omit, axis=1)
+        edges = F[:, 1:, :] - F[:, :1, :]
+        if d == 2:
+            measures.append(np.linalg.norm(edges[:, 0], axis=1))
+        else:
+            measures.append(0.5 * np.linalg.norm(np.cross(edges[:, 0], edges[:, 1]), axis=1))
+    return np.max(measures, axis=0)

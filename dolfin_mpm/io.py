@@ -1,0 +1,164 @@
+"""XDMF/HDF5 time series of particles (moving point cloud) and grid fields, for ParaView.
+
+Each write appends one time to an HDF5 file (flushed) and rewrites the small XDMF file
+atomically, so a run that stops at any point leaves a valid, readable series. Data from all
+ranks is gathered to rank 0, which alone writes.
+"""
+
+import os
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from dolfin_mpm import compat
+from dolfin_mpm.tensor import invariants
+
+__all__ = ["Output", "XDMFSeries"]
+
+_TYPES = {1: "Scalar", 3: "Vector", 9: "Tensor"}
+
+
+class XDMFSeries:
+    """A temporal collection of grids in one ``.xdmf`` + ``.h5`` pair.
+
+    Args:
+        path: the ``.xdmf`` file; the data goes to the same name with ``.h5``.
+    """
+
+    def __init__(self, path):
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.h5_path = self.path.with_suffix(".h5")
+        self.h5 = h5py.File(self.h5_path, "w")
+        self.root = ET.Element("Xdmf", Version="3.0")
+        domain = ET.SubElement(self.root, "Domain")
+        self.series = ET.SubElement(domain, "Grid", Name="series", GridType="Collection", CollectionType="Temporal")
+        self.count = 0
+        self.static: dict[str, str] = {}
+
+    def _item(self, parent, name: str, data: np.ndarray) -> None:
+        if name not in self.h5:
+            self.h5.create_dataset(name, data=data)
+        number = {"float64": "Float", "float32": "Float", "int32": "Int", "int64": "Int"}[data.dtype.name]
+        item = ET.SubElement(
+            parent, "DataItem", Dimensions=" ".join(map(str, data.shape)), Format="HDF",
+            NumberType=number, Precision=str(data.dtype.itemsize),
+        )  # fmt: skip
+        item.text = f"{self.h5_path.name}:/{name}"
+
+    def write(self, t: float, points, cells, cell_type: str, fields: dict[str, np.ndarray], static_mesh=False):
+        """Append the grid at time ``t``.
+
+        Args:
+            points: ``shape=(num_points, 3)``.
+            cells: ``shape=(num_cells, nodes_per_cell)``.
+            cell_type: XDMF topology type (``Polyvertex``, ``Triangle``, ``Tetrahedron``).
+            fields: nodal data by name, ``shape=(num_points,)``, ``(num_points, 3)`` or ``(num_points, 9)``.
+            static_mesh: store points and cells once and refer to them at every time.
+        """
+        k = self.count
+        grid = ET.SubElement(self.series, "Grid", Name=f"t{k}", GridType="Uniform")
+        ET.SubElement(grid, "Time", Value=repr(float(t)))
+        mesh_group = "mesh" if static_mesh else f"step{k}"
+        topo = ET.SubElement(
+            grid, "Topology", TopologyType=cell_type, NumberOfElements=str(len(cells)),
+            NodesPerElement=str(cells.shape[1]),
+        )  # fmt: skip
+        self._item(topo, f"{mesh_group}/cells", cells)
+        geom = ET.SubElement(grid, "Geometry", GeometryType="XYZ")
+        self._item(geom, f"{mesh_group}/x", points)
+        for name, values in fields.items():
+            values = values.reshape(len(points), -1)
+            attr = ET.SubElement(grid, "Attribute", Name=name, AttributeType=_TYPES.get(values.shape[1], "Matrix"), Center="Node")
+            self._item(attr, f"step{k}/{name}", values if values.shape[1] > 1 else values[:, 0])
+        self.count += 1
+        self.h5.flush()
+        tmp = self.path.with_name(self.path.name + ".tmp")
+        ET.ElementTree(self.root).write(tmp, xml_declaration=True, encoding="utf-8")
+        os.replace(tmp, self.path)
+
+    def close(self) -> None:
+        self.h5.close()
+
+
+def _gather(comm, a: np.ndarray) -> np.ndarray | None:
+    parts = comm.gather(a, root=0)
+    return np.concatenate(parts) if comm.rank == 0 else None
+
+
+class Output:
+    """Writes ``particles.xdmf`` and ``grid.xdmf`` in ``folder`` at each :meth:`write`.
+
+    Particle fields: velocity, stress (full 3x3), p, q, mass, volume, id, and every material
+    state array. Grid fields: mass, momentum, velocity, internal, external and contact force.
+    """
+
+    def __init__(self, folder, comm):
+        self.folder = Path(folder)
+        self.comm = comm
+        self.particles = self.grid = None
+        if comm.rank == 0:
+            self.folder.mkdir(parents=True, exist_ok=True)
+            self.particles = XDMFSeries(self.folder / "particles.xdmf")
+            self.grid = XDMFSeries(self.folder / "grid.xdmf")
+
+    def write(self, solver) -> None:
+        P, comm = solver.particles, self.comm
+        p, q = invariants(P.sigma)
+        fields = {
+            "velocity": _pad3(P.v), "stress": P.sigma.reshape(-1, 9), "p": p, "q": q,
+            "mass": P.mass, "volume": P.volume, "id": P.id.astype(np.float64),
+        }  # fmt: skip
+        fields.update({name: a.reshape(len(P), -1) for name, a in P.state.items()})
+        x = _gather(comm, P.x)
+        fields = {name: _gather(comm, a) for name, a in fields.items()}
+        if comm.rank == 0:
+            cells = np.arange(len(x), dtype=np.int32).reshape(-1, 1)
+            self.particles.write(solver.time, x, cells, "Polyvertex", fields)
+        self._write_grid(solver)
+
+    def _write_grid(self, solver) -> None:
+        grid, comm = solver.grid, self.comm
+        msh, gdim = grid.mesh, grid.gdim
+        geom_dofs = compat.geometry_dofmap(msh)
+        num_owned_cells = msh.topology.index_map(grid.tdim).size_local
+        # Values at geometry nodes (P1: geometry node i of a cell carries dof i of the cell).
+        node_of_geom = np.empty(msh.geometry.x.shape[0], dtype=np.int64)
+        node_of_geom[geom_dofs] = grid.cell_dofs
+        gmap = msh.geometry.index_map()
+        owned = gmap.size_local
+        global_nodes = gmap.local_to_global(np.arange(owned + gmap.num_ghosts, dtype=np.int32))
+        cells = _gather(comm, global_nodes[geom_dofs[:num_owned_cells]])
+        ids = _gather(comm, global_nodes[:owned])
+        x = _gather(comm, msh.geometry.x[:owned])
+        fields = {"mass": grid.mass.x.array[node_of_geom[:owned]]}
+        for f in (grid.momentum, grid.velocity, grid.f_int, grid.f_ext, grid.f_contact):
+            fields[f.name] = _pad3(f.x.array.reshape(-1, gdim)[node_of_geom[:owned]])
+        fields = {name: _gather(comm, a) for name, a in fields.items()}
+        if comm.rank == 0:
+            order = np.argsort(ids)
+            cell_type = "Triangle" if grid.tdim == 2 else "Tetrahedron"
+            self.grid.write(
+                solver.time, x[order], cells.astype(np.int64), cell_type,
+                {name: a[order] for name, a in fields.items()}, static_mesh=True,
+            )  # fmt: skip
+
+    def close(self) -> None:
+        if self.comm.rank == 0:
+            self.particles.close()
+            self.grid.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def _pad3(a: np.ndarray) -> np.ndarray:
+    """Vectors of 1–3 components as 3-vectors (ParaView's Vector attribute)."""
+    out = np.zeros((a.shape[0], 3))
+    out[:, : a.shape[1]] = a
+    return out

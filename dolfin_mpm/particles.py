@@ -1,0 +1,116 @@
+"""Material points as flat arrays (particle axis first), and sinks that take them out."""
+
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["Particles", "Sink"]
+
+
+class Particles:
+    """The time-varying state of all material points on this rank.
+
+    Every per-particle quantity is one array whose first axis is the particle, so that
+    particles can be added, removed or sent to another rank by fancy indexing alone.
+
+    Attributes:
+        x: positions [m], ``shape=(n, 3)`` (z = 0 in 2D, as DOLFINx stores points).
+        v: velocities [m/s], ``shape=(n, gdim)``.
+        mass: [kg] (per metre of depth in 2D), ``shape=(n,)``.
+        volume: current volume [m^3] (m^2 in 2D), ``shape=(n,)``.
+        sigma: Cauchy stress [Pa], ``shape=(n, 3, 3)`` (sigma_zz kept in plane strain).
+        material: index into the solver's list of materials, ``shape=(n,)``.
+        id: global particle number, fixed for the life of the particle, ``shape=(n,)``.
+        cell: local cell holding the particle, or -1 when unknown, ``shape=(n,)``.
+        state: material state arrays by name, each with particle axis first.
+    """
+
+    _fields = ("x", "v", "mass", "volume", "sigma", "material", "id", "cell")
+
+    def __init__(self, x, v, mass, volume, sigma=None, material=None, id=None, state=None):
+        n = len(mass)
+        self.x = np.ascontiguousarray(x, dtype=np.float64).reshape(n, 3)
+        self.v = np.ascontiguousarray(v, dtype=np.float64).reshape(n, -1)
+        self.mass = np.ascontiguousarray(mass, dtype=np.float64)
+        self.volume = np.ascontiguousarray(volume, dtype=np.float64)
+        self.sigma = np.zeros((n, 3, 3)) if sigma is None else np.array(sigma, dtype=np.float64)
+        self.material = np.zeros(n, np.int32) if material is None else np.asarray(material, np.int32)
+        self.id = np.arange(n, dtype=np.int64) if id is None else np.asarray(id, np.int64)
+        self.cell = np.full(n, -1, dtype=np.int32)
+        self.state: dict[str, np.ndarray] = dict(state or {})
+
+    def __len__(self) -> int:
+        return self.mass.shape[0]
+
+    @property
+    def gdim(self) -> int:
+        return self.v.shape[1]
+
+    def arrays(self) -> Iterator[tuple[str, np.ndarray]]:
+        """All per-particle arrays by name, state arrays as ``state/<name>``."""
+        for name in self._fields:
+            yield name, getattr(self, name)
+        for name, a in self.state.items():
+            yield f"state/{name}", a
+
+    def _set(self, name: str, a: np.ndarray) -> None:
+        if name.startswith("state/"):
+            self.state[name[6:]] = a
+        else:
+            setattr(self, name, a)
+
+    def keep(self, mask: np.ndarray) -> None:
+        """Keep only the particles where ``mask`` is true (in place)."""
+        for name, a in list(self.arrays()):
+            self._set(name, a[mask])
+
+    def take(self, index: np.ndarray) -> "Particles":
+        """A new Particles holding copies of the selected particles."""
+        out = Particles.__new__(Particles)
+        out.state = {}
+        for name, a in self.arrays():
+            out._set(name, a[index].copy())
+        return out
+
+    def extend(self, other: "Particles") -> None:
+        """Append the particles of ``other`` (same fields)."""
+        for name, a in list(self.arrays()):
+            self._set(name, np.concatenate([a, dict(other.arrays())[name]]))
+
+
+@dataclass
+class Sink:
+    """Takes particles out of the computation and records what they carried.
+
+    Args:
+        name: label used in reports.
+        region: ``region(x) -> mask`` on positions ``x.shape=(3, n)``; particles inside are
+            absorbed each step. ``None``: the sink only receives particles that left the grid.
+
+    Attributes:
+        mass: total absorbed mass [kg] (per metre in 2D).
+        momentum: total absorbed momentum [kg m/s], ``shape=(gdim,)``.
+        count: number of absorbed particles.
+        history: ``(time [s], cumulative mass [kg])`` after each step that absorbed something.
+    """
+
+    name: str
+    region: Callable[[np.ndarray], np.ndarray] | None = None
+    mass: float = 0.0
+    momentum: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    count: int = 0
+    history: list[tuple[float, float]] = field(default_factory=list)
+
+    def absorb(self, particles: Particles, mask: np.ndarray, time: float) -> None:
+        """Record and remove the particles where ``mask`` is true."""
+        if self.momentum.size == 0:
+            self.momentum = np.zeros(particles.gdim)
+        if not np.any(mask):
+            return
+        m = particles.mass[mask]
+        self.mass += float(m.sum())
+        self.momentum += (m[:, None] * particles.v[mask]).sum(axis=0)
+        self.count += int(mask.sum())
+        self.history.append((time, self.mass))
+        particles.keep(~mask)

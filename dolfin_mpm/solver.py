@@ -1,0 +1,311 @@
+"""The explicit MPM time step: locate -> P2G -> nodal solve -> G2P -> stress update.
+
+One step advances ``M a = F + F_c - R`` (the paper's eq. 4) with the lumped mass matrix,
+in the USL or MUSL variant, with a PIC/FLIP blend for the particle velocities.
+"""
+
+import math
+import sys
+import time
+from collections import defaultdict
+from collections.abc import Sequence
+from contextlib import contextmanager
+
+import numpy as np
+from mpi4py import MPI
+
+from dolfin_mpm.boundary import BoundaryCondition
+from dolfin_mpm.grid import Grid
+from dolfin_mpm.locate import Basis, basis_at, locate
+from dolfin_mpm.materials.base import Material, check_range
+from dolfin_mpm.particles import Particles, Sink
+from dolfin_mpm.tensor import split_velocity_gradient
+
+__all__ = ["Solver", "SimulationError"]
+
+STAGES = ("locate", "basis", "p2g", "nodal_solve", "g2p", "constitutive")
+
+
+class SimulationError(RuntimeError):
+    """A run that went bad (non-finite state, particle lost); names the step and the particle."""
+
+
+class Solver:
+    """Explicit material point solver on a DOLFINx background grid.
+
+    Args:
+        grid: background grid.
+        particles: material points (their ``material`` indexes ``materials``).
+        materials: constitutive models.
+        bcs: nodal boundary conditions, applied in order.
+        gravity: body force per unit mass [m/s^2], ``shape=(gdim,)``; default zero.
+        dt: time step [s]; default ``courant * h_min / max p-wave speed``.
+        courant: Courant factor for the automatic step, in (0, 1].
+        scheme: ``"MUSL"`` (velocities re-mapped before the strain rate) or ``"USL"``.
+        flip: FLIP fraction of the particle velocity update, in [0, 1] (1 = pure FLIP).
+        damping: local non-viscous (Cundall) damping factor, in [0, 1).
+        sinks: sinks absorbing particles in their regions each step.
+        on_exit: ``"error"`` to stop when a particle leaves the grid, or the name of a sink
+            in ``sinks`` that receives it.
+        mass_tol: nodes with mass below ``mass_tol * max nodal mass`` are left at rest.
+    """
+
+    def __init__(
+        self,
+        grid: Grid,
+        particles: Particles,
+        materials: Material | Sequence[Material],
+        bcs: Sequence[BoundaryCondition] = (),
+        gravity=None,
+        dt: float | None = None,
+        courant: float = 0.5,
+        scheme: str = "MUSL",
+        flip: float = 1.0,
+        damping: float = 0.0,
+        sinks: Sequence[Sink] = (),
+        on_exit: str = "error",
+        mass_tol: float = 1e-10,
+    ):
+        self.grid, self.particles = grid, particles
+        self.materials = [materials] if isinstance(materials, Material) else list(materials)
+        self.bcs = list(bcs)
+        g = np.zeros(grid.gdim) if gravity is None else np.asarray(gravity, dtype=np.float64)
+        if g.shape != (grid.gdim,):
+            raise ValueError(f"gravity must have {grid.gdim} components, got {gravity!r}")
+        self.gravity = g
+        check_range("courant", courant, 0.0, 1.0, closed=(False, True))
+        check_range("flip", flip, 0.0, 1.0, closed=(True, True))
+        check_range("damping", damping, 0.0, 1.0, closed=(True, False))
+        check_range("mass_tol", mass_tol, 0.0, 1.0, closed=(True, False))
+        if scheme not in ("USL", "MUSL"):
+            raise ValueError(f"scheme must be 'USL' or 'MUSL', got {scheme!r}")
+        self.scheme, self.flip, self.damping, self.mass_tol = scheme, flip, damping, mass_tol
+        self.sinks = {s.name: s for s in sinks}
+        if on_exit != "error" and on_exit not in self.sinks:
+            raise ValueError(f"on_exit must be 'error' or one of the sinks {list(self.sinks)}, got {on_exit!r}")
+        self.on_exit = on_exit
+        if len(particles) and not (0 <= particles.material.min() and particles.material.max() < len(self.materials)):
+            raise ValueError(f"particles.material must index the {len(self.materials)} materials")
+        for m in self.materials:
+            for name, shape in m.state_fields().items():
+                particles.state.setdefault(name, np.zeros((len(particles), *shape)))
+        # Global particle numbers, unique across ranks.
+        offset = self.comm.exscan(len(particles)) or 0
+        particles.id = offset + np.arange(len(particles), dtype=np.int64)
+
+        self.critical_dt = courant * self.comm.allreduce(grid.h_min, MPI.MIN) / max(
+            m.p_wave_speed() for m in self.materials
+        )
+        if dt is not None:
+            check_range("dt", dt, 0.0, np.inf)
+        self.dt = self.critical_dt if dt is None else float(dt)
+        self.time = 0.0
+        self.step_count = 0
+        self.timings: dict[str, float] = defaultdict(float)
+
+    @property
+    def comm(self):
+        return self.grid.comm
+
+    @contextmanager
+    def _stage(self, name: str):
+        t0 = time.perf_counter()
+        yield
+        self.timings[name] += time.perf_counter() - t0
+
+    # -- the step ------------------------------------------------------------------------------
+    def step(self) -> None:
+        """Advance particles and grid by one time step ``dt``."""
+        dt = self.dt
+        with self._stage("locate"):
+            cells, N = self._locate()
+        with self._stage("basis"):
+            basis = basis_at(self.grid, cells, N)
+        with self._stage("p2g"):
+            self._p2g(basis)
+        with self._stage("nodal_solve"):
+            self._nodal_solve(dt)
+        with self._stage("g2p"):
+            L = self._g2p(basis, dt)
+        with self._stage("constitutive"):
+            self._update_stress(L, dt)
+        self.time += dt
+        self.step_count += 1
+        self._check_finite()
+
+    def _locate(self) -> tuple[np.ndarray, np.ndarray]:
+        """Absorb particles into sinks, then find every particle's cell and basis values."""
+        P = self.particles
+        for sink in self.sinks.values():
+            if sink.region is not None:
+                sink.absorb(P, np.asarray(sink.region(P.x.T), dtype=bool), self.time)
+        cells, N = locate(self.grid, P.x, P.cell)
+        lost = cells < 0
+        if np.any(lost):
+            if self.on_exit == "error":
+                i = np.flatnonzero(lost)[0]
+                raise SimulationError(
+                    f"step {self.step_count}, t = {self.time:.6g} s: particle {P.id[i]} left the "
+                    f"grid at x = {P.x[i]} ({lost.sum()} particles outside)"
+                )
+            self.sinks[self.on_exit].absorb(P, lost, self.time)
+            cells, N = cells[~lost], N[~lost]
+        P.cell = cells
+        return cells, N
+
+    def _scatter(self, basis: Basis, values: np.ndarray) -> np.ndarray:
+        """Local nodal sums of ``sum_p N_a(x_p) values_p`` (``values.shape=(n,)`` or ``(n, k)``)."""
+        num_nodes, idx = self.grid.num_nodes, basis.dofs.ravel()
+        if values.ndim == 1:
+            return np.bincount(idx, (basis.N * values[:, None]).ravel(), minlength=num_nodes)
+        w = basis.N[:, :, None] * values[:, None, :]
+        return self._scatter_nodal(basis, w)
+
+    def _scatter_nodal(self, basis: Basis, w: np.ndarray) -> np.ndarray:
+        """Local nodal sums of per-particle, per-node vectors ``w.shape=(n, nodes, k)``."""
+        num_nodes, idx = self.grid.num_nodes, basis.dofs.ravel()
+        w = w.reshape(-1, w.shape[2])
+        return np.stack([np.bincount(idx, w[:, c], minlength=num_nodes) for c in range(w.shape[1])], axis=1)
+
+    def _p2g(self, basis: Basis) -> None:
+        """Lumped mass, momentum, external force ``F`` and internal force ``R`` at the nodes."""
+        P, grid, g = self.particles, self.grid, self.grid.gdim
+        grid.assemble(grid.mass, self._scatter(basis, P.mass))
+        grid.assemble(grid.momentum, self._scatter(basis, P.mass[:, None] * P.v))
+        grid.assemble(grid.f_ext, grid.mass.x.array[:, None] * self.gravity)
+        # R_a = sum_p V_p sigma_p grad N_a(x_p)
+        sigma = P.sigma[:, :g, :g] * P.volume[:, None, None]
+        grid.assemble(grid.f_int, self._scatter_nodal(basis, np.einsum("nij,naj->nai", sigma, basis.dN)))
+
+    def _active_mass(self) -> tuple[np.ndarray, np.ndarray]:
+        m = self.grid.mass.x.array
+        m_max = self.comm.allreduce(m.max() if m.size else 0.0, MPI.MAX)
+        active = m > self.mass_tol * m_max
+        inv_m = np.zeros_like(m)
+        inv_m[active] = 1.0 / m[active]
+        return active, inv_m
+
+    def _apply_bcs(self, v: np.ndarray) -> None:
+        for bc in self.bcs:
+            bc.apply(v)
+
+    def _nodal_solve(self, dt: float) -> None:
+        """Nodal velocities at the end of the step from ``M a = F + F_c - R``."""
+        grid, gdim = self.grid, self.grid.gdim
+        _, inv_m = self._active_mass()
+        m = grid.mass.x.array[:, None]
+        v = grid.momentum.x.array.reshape(-1, gdim) * inv_m[:, None]
+        f = (grid.f_ext.x.array - grid.f_int.x.array).reshape(-1, gdim)
+        if self.damping > 0.0:
+            f = f - self.damping * np.abs(f) * np.sign(v)
+        v_trial = v + dt * f * inv_m[:, None]
+        v_new = v_trial.copy()
+        self._apply_bcs(v_new)
+        grid.f_contact.x.array[:] = (m * (v_new - v_trial) / dt).ravel()
+        grid.velocity.x.array[:] = v_new.ravel()
+        grid.acceleration.x.array[:] = ((v_new - v) / dt).ravel()
+
+    def _g2p(self, basis: Basis, dt: float) -> np.ndarray:
+        """Particle velocities and positions from the grid; returns the velocity gradient."""
+        P, grid, gdim = self.particles, self.grid, self.grid.gdim
+        v_grid = grid.velocity.x.array.reshape(-1, gdim)
+        a_grid = grid.acceleration.x.array.reshape(-1, gdim)
+        v_interp = np.einsum("na,nai->ni", basis.N, v_grid[basis.dofs])
+        if self.flip > 0.0:
+            a_interp = np.einsum("na,nai->ni", basis.N, a_grid[basis.dofs])
+            P.v = self.flip * (P.v + dt * a_interp) + (1.0 - self.flip) * v_interp
+        else:
+            P.v = v_interp
+        P.x[:, :gdim] += dt * v_interp
+        if self.scheme == "MUSL":
+            _, inv_m = self._active_mass()
+            p = grid.assemble(grid.momentum, self._scatter(basis, P.mass[:, None] * P.v))
+            v_grid = p * inv_m[:, None]
+            self._apply_bcs(v_grid)
+            grid.velocity.x.array[:] = v_grid.ravel()
+        return np.einsum("nai,naj->nij", v_grid[basis.dofs], basis.dN)
+
+    def _update_stress(self, L: np.ndarray, dt: float) -> None:
+        """Stress and state from each material; volume from ``det(I + dt L)``."""
+        P = self.particles
+        d, W = split_velocity_gradient(L)
+        if len(self.materials) == 1:
+            P.sigma = self.materials[0].update(P.sigma, d, W, dt, P.state)
+        else:
+            for k, material in enumerate(self.materials):
+                idx = np.flatnonzero(P.material == k)
+                state = {name: P.state[name][idx] for name in material.state_fields()}
+                P.sigma[idx] = material.update(P.sigma[idx], d[idx], W[idx], dt, state)
+                for name, a in state.items():
+                    P.state[name][idx] = a
+        F_inc = np.eye(L.shape[1]) + dt * L
+        P.volume *= np.linalg.det(F_inc)
+
+    def _check_finite(self) -> None:
+        P = self.particles
+        bad = ~(np.isfinite(P.sigma).all(axis=(1, 2)) & np.isfinite(P.v).all(axis=1) & np.isfinite(P.x).all(axis=1))
+        bad |= ~(P.volume > 0.0)
+        if np.any(bad):
+            i = np.flatnonzero(bad)[0]
+            raise SimulationError(
+                f"step {self.step_count}, t = {self.time:.6g} s: particle {P.id[i]} at x = {P.x[i]} "
+                f"has non-finite stress or velocity, or non-positive volume ({bad.sum()} particles)"
+            )
+
+    # -- driving a run -------------------------------------------------------------------------
+    def run(self, t_end: float, output=None, output_interval: float | None = None, progress: bool = True):
+        """Step until ``t_end`` [s], writing ``output`` every ``output_interval`` [s].
+
+        ``output`` is anything with ``write(solver)`` (see :mod:`dolfin_mpm.io`); it is also
+        written at the start and the end. A :class:`SimulationError` stops the run; what was
+        written before stays readable.
+        """
+        check_range("t_end", t_end, self.time, np.inf, closed=(True, False))
+        n_steps = math.ceil((t_end - self.time) / self.dt - 1e-9)
+        every = max(1, round(output_interval / self.dt)) if output_interval else max(n_steps, 1)
+        show = progress and self.comm.rank == 0
+        if output is not None:
+            output.write(self)
+        t0, last = time.perf_counter(), 0.0
+        for k in range(1, n_steps + 1):
+            self.step()
+            if output is not None and (k % every == 0 or k == n_steps):
+                output.write(self)
+            now = time.perf_counter()
+            if show and (now - last > 1.0 or k == n_steps):
+                last = now
+                rate = k / (now - t0)
+                eta = (n_steps - k) / rate
+                line = (
+                    f"step {self.step_count:7d}  t = {self.time:.4e} s  {rate:7.1f} steps/s  "
+                    f"ETA {eta:6.0f} s  particles {self.num_particles()}"
+                )
+                end = "\r" if sys.stdout.isatty() and k < n_steps else "\n"
+                print(line, end=end, flush=True)
+
+    # -- global diagnostics (summed over ranks) --------------------------------------------------
+    def num_particles(self) -> int:
+        return self.comm.allreduce(len(self.particles), MPI.SUM)
+
+    def total_mass(self) -> float:
+        return self.comm.allreduce(float(self.particles.mass.sum()), MPI.SUM)
+
+    def total_momentum(self) -> np.ndarray:
+        P = self.particles
+        return self.comm.allreduce((P.mass[:, None] * P.v).sum(axis=0), MPI.SUM)
+
+    def energies(self) -> dict[str, float]:
+        """Kinetic, strain and gravitational potential energy [J] (per metre in 2D), and total."""
+        P, g = self.particles, self.grid.gdim
+        kinetic = 0.5 * float(np.sum(P.mass * np.einsum("ni,ni->n", P.v, P.v)))
+        strain = 0.0
+        for k, material in enumerate(self.materials):
+            idx = P.material == k
+            strain += float(np.sum(P.volume[idx] * material.strain_energy_density(P.sigma[idx])))
+        potential = -float(np.sum(P.mass * (P.x[:, :g] @ self.gravity)))
+        e = {
+            name: self.comm.allreduce(val, MPI.SUM)
+            for name, val in (("kinetic", kinetic), ("strain", strain), ("potential", potential))
+        }
+        e["total"] = e["kinetic"] + e["strain"] + e["potential"]
+        return e
