@@ -1,0 +1,110 @@
+"""Grid, particle location, P1 basis, P2G/G2P identities and the lumped mass."""
+
+import dolfinx.fem.petsc  # noqa: F401
+import numpy as np
+import pytest
+import ufl
+from conftest import rectangle
+from dolfinx import fem, mesh
+from mpi4py import MPI
+
+import dolfin_mpm as dm
+from dolfin_mpm.locate import basis_at, locate
+
+EPS = np.finfo(np.float64).eps
+
+
+def random_points(grid, n, seed=0):
+    rng = np.random.default_rng(seed)
+    lo, hi = grid.mesh.geometry.x.min(axis=0), grid.mesh.geometry.x.max(axis=0)
+    x = np.zeros((n, 3))
+    x[:, : grid.gdim] = lo[: grid.gdim] + rng.random((n, grid.gdim)) * (hi - lo)[: grid.gdim]
+    return x
+
+
+def test_partition_of_unity_and_gradients(unit_grid):
+    x = random_points(unit_grid, 500)
+    cells, N = locate(unit_grid, x, np.full(len(x), -1, np.int32))
+    assert np.all(cells >= 0)
+    basis = basis_at(unit_grid, cells, N)
+    assert np.allclose(basis.N.sum(axis=1), 1.0, atol=10 * EPS)
+    assert np.all(basis.N >= -1e-12)
+    assert np.allclose(basis.dN.sum(axis=1), 0.0, atol=100 * EPS / unit_grid.h_min)
+    # The basis reproduces linear functions and their gradients.
+    f = lambda y: 2.0 * y[:, 0] - 3.0 * y[:, 1] + 0.5  # noqa: E731
+    nodal = f(unit_grid.node_x)
+    assert np.allclose(np.einsum("na,na->n", basis.N, nodal[basis.dofs]), f(x), atol=1e-13)
+    assert np.allclose(np.einsum("nai,na->ni", basis.dN, nodal[basis.dofs]), [2.0, -3.0], atol=1e-12)
+
+
+def test_locate_cheap_path_and_search(unit_grid):
+    x = random_points(unit_grid, 300, seed=1)
+    cells, _ = locate(unit_grid, x, np.full(len(x), -1, np.int32))
+    # Same cells when the old cell is given (cheap path) ...
+    again, _ = locate(unit_grid, x, cells)
+    assert np.array_equal(again, cells)
+    # ... and after a small move, the result equals a fresh search.
+    x2 = x + np.r_[0.03, -0.02, 0.0]
+    moved, N = locate(unit_grid, x2, cells)
+    fresh, _ = locate(unit_grid, x2, np.full(len(x), -1, np.int32))
+    outside = (x2[:, 0] > 1) | (x2[:, 1] < 0)
+    assert np.all(moved[outside] == -1)
+    lam = dm.locate.barycentric(unit_grid, x2[~outside], fresh[~outside])
+    assert np.all(lam.min(axis=1) >= -1e-12) and np.all(N[~outside].min(axis=1) >= -1e-12)
+
+
+def test_lumped_mass_equals_consistent_mass_row_sum():
+    grid = dm.Grid(rectangle((0, 0), (0.2, 0.3), (7, 9), "left"))
+    rho = 1500.0
+    P = dm.seed(grid, dm.LinearElastic(1e6, 0.3, rho), ppc=4)
+    solver = dm.Solver(grid, P, dm.LinearElastic(1e6, 0.3, rho))
+    cells, N = locate(grid, P.x, P.cell)
+    solver._p2g(basis_at(grid, cells, N))
+
+    u, v = ufl.TrialFunction(grid.Q), ufl.TestFunction(grid.Q)
+    M = dolfinx.fem.petsc.assemble_matrix(fem.form(rho * u * v * ufl.dx))
+    M.assemble()
+    ones, row_sum = M.createVecRight(), M.createVecLeft()
+    ones.set(1.0)
+    M.mult(ones, row_sum)
+    lumped = grid.mass.x.array[: grid.num_owned_nodes]
+    assert np.allclose(lumped, row_sum.array, rtol=1e-12, atol=0)
+    assert np.isclose(grid.comm.allreduce(lumped.sum(), MPI.SUM), rho * 0.2 * 0.3, rtol=1e-12)
+
+
+@pytest.mark.parametrize("flip", [0.0, 0.5, 1.0])
+def test_transfers_conserve_mass_and_momentum(unit_grid, flip):
+    rng = np.random.default_rng(2)
+    x = random_points(unit_grid, 400, seed=3) * np.r_[0.8, 0.8, 0] + np.r_[0.1, 0.1, 0]
+    n = len(x)
+    P = dm.Particles(x, rng.normal(size=(n, 2)), rng.random(n) + 0.5, np.full(n, 1e-3))
+    solver = dm.Solver(unit_grid, P, dm.LinearElastic(1e3, 0.2, 1.0), flip=flip, dt=1e-4)
+    m0, p0 = solver.total_mass(), solver.total_momentum()
+    cells, N = locate(unit_grid, P.x, P.cell)
+    basis = basis_at(unit_grid, cells, N)
+    solver._p2g(basis)
+    owned = slice(0, unit_grid.num_owned_nodes)
+    m_grid = unit_grid.mass.x.array[owned].sum()
+    p_grid = unit_grid.momentum.x.array.reshape(-1, 2)[owned].sum(axis=0)
+    assert np.isclose(unit_grid.comm.allreduce(m_grid, MPI.SUM), m0, rtol=1e-14)
+    assert np.allclose(unit_grid.comm.allreduce(p_grid, MPI.SUM), p0, rtol=0, atol=1e-13 * np.abs(p0).max())
+    solver.step()  # no stress, no gravity: the step must not create momentum
+    assert np.allclose(solver.total_momentum(), p0, atol=1e-12 * np.abs(p0).max())
+    assert solver.total_mass() == pytest.approx(m0, rel=1e-15)
+
+
+def test_3d_grid_basis():
+    msh = mesh.create_box(MPI.COMM_WORLD, [np.zeros(3), np.ones(3)], [3, 3, 3], mesh.CellType.tetrahedron)
+    grid = dm.Grid(msh)
+    x = random_points(grid, 200)
+    cells, N = locate(grid, x, np.full(len(x), -1, np.int32))
+    assert np.all(cells >= 0)
+    b = basis_at(grid, cells, N)
+    assert np.allclose(b.N.sum(axis=1), 1.0) and np.allclose(b.dN.sum(axis=1), 0.0, atol=1e-12)
+    assert np.isclose(grid.comm.allreduce(grid.cell_volume[: msh.topology.index_map(3).size_local].sum(), MPI.SUM), 1.0)
+
+
+def test_quadrilateral_mesh_is_refused():
+    msh = mesh.create_rectangle(MPI.COMM_WORLD, [np.zeros(2), np.ones(2)], [2, 2], mesh.CellType.quadrilateral)
+    with pytest.raises(ValueError, match="affine simplices"):
+        dm.Grid(msh)

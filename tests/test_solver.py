@@ -1,0 +1,174 @@
+"""The explicit step against analytical solutions, and its failure modes."""
+
+import numpy as np
+import pytest
+from conftest import rectangle
+from dolfinx import mesh
+from mpi4py import MPI
+
+import dolfin_mpm as dm
+
+
+def test_free_fall_and_translation_are_exact():
+    grid = dm.Grid(rectangle((0, 0), (1, 1), (10, 10)))
+    mat = dm.LinearElastic(E=1e4, nu=0.3, rho=1000.0)
+    v0, g = np.array([0.3, 0.2]), np.array([0.0, -9.81])
+    P = dm.seed(grid, mat, ppc=4, where=lambda x: (abs(x[0] - 0.3) < 0.1) & (abs(x[1] - 0.6) < 0.1), velocity=v0)
+    x0 = P.x.copy()
+    solver = dm.Solver(grid, P, mat, gravity=g, dt=1e-3)
+    n = 150
+    for _ in range(n):
+        solver.step()
+    # Semi-implicit Euler: v_n = v0 + n dt g, x_n = x0 + n dt v0 + dt^2 g n (n + 1) / 2.
+    dt = solver.dt
+    assert np.max(np.abs(P.v - (v0 + n * dt * g))) < 1e-10
+    assert np.max(np.abs(P.x[:, :2] - (x0[:, :2] + n * dt * v0 + dt**2 * g * n * (n + 1) / 2))) < 1e-10
+    assert np.max(np.abs(P.sigma)) < 1e-10 * mat.E  # rigid motion: no stress
+    assert np.allclose(P.volume * len(P), 0.04)
+
+
+def _bar(scheme, flip=1.0, periods=5.0):
+    """Fixed-free bar in uniaxial strain, first mode; returns (times, tip disp, energies, T exact)."""
+    Lb, E, rho, v0 = 1.0, 100.0, 1.0, 0.01
+    grid = dm.Grid(rectangle((0, 0), (1.2, 0.04), (30, 1)))
+    mat = dm.LinearElastic(E=E, nu=0.0, rho=rho)
+    P = dm.seed(grid, mat, ppc=4, where=lambda x: x[0] < Lb)
+    P.v[:, 0] = v0 * np.sin(np.pi * P.x[:, 0] / (2 * Lb))
+    bcs = [
+        dm.FixedBC(grid.nodes_where(lambda x: np.isclose(x[0], 0.0))),
+        dm.SlipBC(grid.nodes_where(lambda x: np.isclose(x[1], 0.0) | np.isclose(x[1], 0.04)), normal=(0, 1)),
+    ]
+    solver = dm.Solver(grid, P, mat, bcs=bcs, scheme=scheme, flip=flip, courant=0.3)
+    T = 4 * Lb / np.sqrt(E / rho)
+    tip = np.argmax(P.x[:, 0])
+    x_tip0 = P.x[tip, 0]
+    t, u, energy = [0.0], [0.0], [solver.energies()["total"]]
+    while solver.time < periods * T:
+        solver.step()
+        t.append(solver.time)
+        u.append(P.x[tip, 0] - x_tip0)
+        energy.append(solver.energies()["total"])
+    return np.array(t), np.array(u), np.array(energy), T
+
+
+def _period(t, u):
+    """Mean period from the downward zero crossings of u(t), linearly interpolated."""
+    s = np.flatnonzero((u[:-1] > 0) & (u[1:] <= 0))
+    crossings = t[s] + (t[s + 1] - t[s]) * u[s] / (u[s] - u[s + 1])
+    return np.mean(np.diff(crossings))
+
+
+def test_bar_vibration_period_and_energy_musl():
+    t, u, energy, T = _bar("MUSL")
+    assert abs(_period(t, u) / T - 1.0) < 0.01
+    assert np.max(np.abs(energy - energy[0])) / energy[0] < 0.02
+
+
+def test_bar_vibration_usl_period():
+    t, u, _, T = _bar("USL", periods=2.5)
+    assert abs(_period(t, u) / T - 1.0) < 0.01
+
+
+def test_column_under_self_weight_k0():
+    H, W, rho, g, nu = 1.0, 0.2, 1000.0, 10.0, 0.3
+    grid = dm.Grid(rectangle((0, 0), (W, 1.1 * H), (4, 22)))
+    mat = dm.LinearElastic(E=1e6, nu=nu, rho=rho)
+    P = dm.seed(grid, mat, ppc=4, where=lambda x: x[1] < H)
+    bcs = [
+        dm.SlipBC(grid.nodes_where(lambda x: np.isclose(x[0], 0.0) | np.isclose(x[0], W)), normal=(1, 0)),
+        dm.FixedBC(grid.nodes_where(lambda x: np.isclose(x[1], 0.0))),
+    ]
+    solver = dm.Solver(grid, P, mat, bcs=bcs, gravity=(0, -g), damping=0.2)
+    solver.run(1.0, progress=False)
+    assert solver.energies()["kinetic"] < 1e-8 * rho * g * H * H * W
+    y, syy, sxx = P.x[:, 1], P.sigma[:, 1, 1], P.sigma[:, 0, 0]
+    slope, base = np.polyfit(y, syy, 1)
+    assert base == pytest.approx(-rho * g * H, rel=0.03)
+    interior = y < 0.8 * H
+    assert np.mean(sxx[interior] / syy[interior]) == pytest.approx(nu / (1 - nu), rel=0.03)
+    # The base reaction carries the weight: measured undamped (damping forces would add to it)
+    # and averaged over steps (each step's contact force is an impulse / dt).
+    solver.damping = 0.0
+    base_nodes = grid.nodes_where(lambda x: np.isclose(x[1], 0.0))
+    reaction = []
+    for _ in range(100):
+        solver.step()
+        reaction.append(grid.f_contact.x.array.reshape(-1, 2)[base_nodes, 1].sum())
+    assert np.mean(reaction) == pytest.approx(rho * g * H * W, rel=0.01)
+
+
+def test_3d_block_under_gravity():
+    msh = mesh.create_box(MPI.COMM_WORLD, [np.zeros(3), np.array([0.2, 0.2, 0.4])], [3, 3, 6], mesh.CellType.tetrahedron)
+    grid = dm.Grid(msh)
+    mat = dm.LinearElastic(E=1e5, nu=0.25, rho=1000.0)
+    P = dm.seed(grid, mat, ppc=4, where=lambda x: x[2] < 0.2)
+    bottom = dm.FixedBC(grid.nodes_where(lambda x: np.isclose(x[2], 0.0)))
+    solver = dm.Solver(grid, P, mat, bcs=[bottom], gravity=(0, 0, -9.81))
+    m0 = solver.total_mass()
+    assert m0 == pytest.approx(1000.0 * 0.2 * 0.2 * 0.2, rel=1e-12)
+    solver.run(0.02, progress=False)
+    assert solver.total_mass() == pytest.approx(m0, rel=1e-14)
+    assert np.all(np.isfinite(P.sigma)) and P.sigma[:, 2, 2].min() < 0.0
+    # Impulse: the base can only push, so gravity's -m g t bounds the falling momentum.
+    pz = solver.total_momentum()[2]
+    assert -m0 * 9.81 * solver.time * (1 + 1e-12) <= pz < 0.0
+
+
+def test_particles_leaving_the_grid():
+    grid = dm.Grid(rectangle((0, 0), (1, 1), (5, 5)))
+    mat = dm.LinearElastic(E=1e3, nu=0.3, rho=1.0)
+    make = lambda: dm.seed(grid, mat, ppc=1, where=lambda x: x[1] < 0.3, velocity=(0.0, -1.0))  # noqa: E731
+    with pytest.raises(dm.SimulationError, match=r"step \d+, t = .* particle \d+ left the grid"):
+        dm.Solver(grid, make(), mat, dt=0.01).run(1.0, progress=False)
+    out = dm.Sink("outlet")
+    P = make()
+    m0, n0 = P.mass.sum(), len(P)
+    solver = dm.Solver(grid, P, mat, dt=0.01, sinks=[out], on_exit="outlet")
+    solver.run(0.5, progress=False)
+    assert out.count == n0 and len(P) == 0
+    assert out.mass == pytest.approx(m0, rel=1e-14)
+    assert out.momentum[1] == pytest.approx(-m0, rel=1e-12)
+
+
+def test_region_sink_records_history():
+    grid = dm.Grid(rectangle((0, 0), (1, 1), (5, 5)))
+    mat = dm.LinearElastic(E=1e3, nu=0.3, rho=1.0)
+    P = dm.seed(grid, mat, ppc=4, where=lambda x: x[1] > 0.5)
+    sink = dm.Sink("catch", region=lambda x: x[1] < 0.4)
+    solver = dm.Solver(grid, P, mat, gravity=(0, -10.0), dt=1e-3, sinks=[sink])
+    m0 = solver.total_mass()
+    solver.run(0.3, progress=False)
+    assert 0 < sink.mass < m0
+    assert solver.total_mass() + sink.mass == pytest.approx(m0, rel=1e-14)
+    times, masses = np.array(sink.history).T
+    assert np.all(np.diff(times) > 0) and np.all(np.diff(masses) > 0)
+
+
+def test_non_finite_state_stops_with_step_and_particle():
+    grid = dm.Grid(rectangle((0, 0), (1, 1), (5, 5)))
+    mat = dm.LinearElastic(E=1e3, nu=0.3, rho=1.0)
+    P = dm.seed(grid, mat, ppc=1)
+    P.sigma[7, 0, 0] = np.nan
+    with pytest.raises(dm.SimulationError, match=r"step 1, .*particle \d+ at x = .*non-finite"):
+        dm.Solver(grid, P, mat).step()
+
+
+@pytest.mark.parametrize(
+    "kwargs, name",
+    [({"dt": 0.0}, "dt"), ({"dt": -1.0}, "dt"), ({"courant": 1.5}, "courant"), ({"flip": 1.2}, "flip"),
+     ({"damping": 1.0}, "damping"), ({"scheme": "USF"}, "scheme"), ({"on_exit": "drain"}, "on_exit"),
+     ({"gravity": (0, 0, 1)}, "gravity")],
+)  # fmt: skip
+def test_bad_solver_input(kwargs, name):
+    grid = dm.Grid(rectangle((0, 0), (1, 1), (2, 2)))
+    mat = dm.LinearElastic(E=1e3, nu=0.3, rho=1.0)
+    with pytest.raises(ValueError, match=rf"^{name} must"):
+        dm.Solver(grid, dm.seed(grid, mat, ppc=1), mat, **kwargs)
+
+
+def test_automatic_time_step():
+    grid = dm.Grid(rectangle((0, 0), (1, 1), (4, 4)))
+    mat = dm.LinearElastic(E=1e6, nu=0.3, rho=1500.0)
+    solver = dm.Solver(grid, dm.seed(grid, mat, ppc=1), mat, courant=0.4)
+    h = 0.25 / np.sqrt(2)  # height of a right isosceles triangle with legs 0.25
+    assert solver.dt == pytest.approx(0.4 * h / mat.p_wave_speed(), rel=1e-12)
