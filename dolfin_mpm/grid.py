@@ -24,6 +24,8 @@ class Grid:
         mass, momentum, f_ext, f_int, f_contact, velocity, acceleration: nodal Functions
             [kg, kg m/s, N, N, N, m/s, m/s^2] (per metre of depth in 2D).
         cell_dofs: nodes of each cell, ``shape=(num_cells, gdim + 1)``.
+        K: inverse Jacobian of each cell's affine map, ``shape=(tdim, gdim, num_cells)``.
+        grad_N: P1 basis gradients in each cell [1/m], ``shape=(gdim + 1, gdim, num_cells)``.
         node_x: node coordinates, ``shape=(num_nodes, 3)``.
         h_min: smallest cell height over the local cells [m].
     """
@@ -70,8 +72,13 @@ class Grid:
         detJ = np.linalg.det(J)
         if np.any(np.abs(detJ) <= 0.0):
             raise ValueError("mesh: degenerate cell with zero volume")
-        self.K = np.linalg.inv(J)  # (num_cells, tdim, gdim): xi = K (x - x0)
-        self.grad_N = np.concatenate([-self.K.sum(axis=1, keepdims=True), self.K], axis=1)
+        K = np.linalg.inv(J)  # xi = K (x - x0)
+        grad_N = np.concatenate([-K.sum(axis=1, keepdims=True), K], axis=1)
+        # Component-first copies: per-particle gathers from them read contiguous memory.
+        self.K = np.ascontiguousarray(np.moveaxis(K, 0, -1))  # (tdim, gdim, num_cells)
+        self.grad_N = np.ascontiguousarray(np.moveaxis(grad_N, 0, -1))  # (gdim+1, gdim, num_cells)
+        self.x0_T = np.ascontiguousarray(self.x0.T)  # (gdim, num_cells)
+        self.cell_dofs_T = np.ascontiguousarray(self.cell_dofs.T)  # (gdim+1, num_cells)
         factorial = 2.0 if self.tdim == 2 else 6.0
         self.cell_volume = np.abs(detJ) / factorial
         facet_measure = _largest_facet_measure(X)

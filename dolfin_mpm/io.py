@@ -99,12 +99,17 @@ class Output:
         self.folder = Path(folder)
         self.comm = comm
         self.particles = self.grid = None
+        self.last_time: float | None = None
         if comm.rank == 0:
             self.folder.mkdir(parents=True, exist_ok=True)
             self.particles = XDMFSeries(self.folder / "particles.xdmf")
             self.grid = XDMFSeries(self.folder / "grid.xdmf")
 
     def write(self, solver) -> None:
+        """Append the solver's current state (once per simulated time)."""
+        if solver.time == self.last_time:
+            return
+        self.last_time = solver.time
         P, comm = solver.particles, self.comm
         p, q = invariants(P.sigma)
         fields = {

@@ -1,4 +1,8 @@
-"""Particle location in the background mesh and P1 basis values and gradients at particles."""
+"""Particle location in the background mesh and P1 basis values and gradients at particles.
+
+For speed the basis arrays are component-first (particle axis last): each component is one
+contiguous array over the particles.
+"""
 
 from dataclasses import dataclass
 
@@ -18,9 +22,9 @@ class Basis:
     """P1 basis at the particles, computed once per step and used by every stage.
 
     Attributes:
-        dofs: nodes of each particle's cell, ``shape=(n, gdim + 1)``.
-        N: basis values, ``shape=(n, gdim + 1)``.
-        dN: basis gradients [1/m], ``shape=(n, gdim + 1, gdim)``.
+        dofs: nodes of each particle's cell, ``shape=(gdim + 1, n)``.
+        N: basis values, ``shape=(gdim + 1, n)``.
+        dN: basis gradients [1/m], ``shape=(gdim + 1, gdim, n)``.
     """
 
     dofs: np.ndarray
@@ -29,9 +33,14 @@ class Basis:
 
 
 def barycentric(grid: Grid, x: np.ndarray, cells: np.ndarray) -> np.ndarray:
-    """Barycentric coordinates of points ``x`` (``(n, 3)``) in ``cells``, ``shape=(n, gdim+1)``."""
-    xi = np.einsum("nij,nj->ni", grid.K[cells], x[:, : grid.gdim] - grid.x0[cells])
-    return np.concatenate([1.0 - xi.sum(axis=1, keepdims=True), xi], axis=1)
+    """Barycentric coordinates of points ``x`` (``(n, 3)``) in ``cells``, ``shape=(gdim+1, n)``."""
+    g = grid.gdim
+    dx = [x[:, j] - grid.x0_T[j].take(cells) for j in range(g)]
+    lam = np.empty((g + 1, len(cells)))
+    for i in range(g):
+        lam[i + 1] = sum(grid.K[i, j].take(cells) * dx[j] for j in range(g))
+    lam[0] = 1.0 - lam[1:].sum(axis=0)
+    return lam
 
 
 def locate(grid: Grid, x: np.ndarray, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -44,32 +53,29 @@ def locate(grid: Grid, x: np.ndarray, cells: np.ndarray) -> tuple[np.ndarray, np
 
     Returns:
         ``(cells, N)``: the cell of each point (``-1`` if outside the local mesh) and the
-        barycentric coordinates there (the P1 basis values; undefined where ``cells == -1``).
+        barycentric coordinates there, ``shape=(gdim+1, n)`` (the P1 basis values;
+        undefined where ``cells == -1``).
     """
-    n = x.shape[0]
-    cells = cells.astype(np.int32, copy=True)
-    N = np.empty((n, grid.gdim + 1))
     known = cells >= 0
-    N[known] = barycentric(grid, x[known], cells[known])
-    inside = known.copy()
-    inside[known] = N[known].min(axis=1) >= -TOL
+    cells = np.where(known, cells, 0).astype(np.int32)
+    N = barycentric(grid, x, cells)
+    inside = (N.min(axis=0) >= -TOL) & known
     search = np.flatnonzero(~inside)
     cells[search] = -1
     if search.size:
         offsets, candidates = compat.candidate_cells(grid.tree, x[search])
-        counts = np.diff(offsets)
-        owner = np.repeat(np.arange(search.size), counts)
+        owner = np.repeat(np.arange(search.size), np.diff(offsets))
         lam = barycentric(grid, x[search][owner], candidates)
-        score = lam.min(axis=1)
+        score = lam.min(axis=0)
         # Per point, the candidate with the largest smallest barycentric coordinate.
         order = np.lexsort((-score, owner))
         first = order[np.r_[0, np.flatnonzero(np.diff(owner[order])) + 1]] if order.size else order
         found = first[score[first] >= -TOL]
         cells[search[owner[found]]] = candidates[found]
-        N[search[owner[found]]] = lam[found]
+        N[:, search[owner[found]]] = lam[:, found]
     return cells, N
 
 
 def basis_at(grid: Grid, cells: np.ndarray, N: np.ndarray) -> Basis:
     """Gather the nodes and the (cell-constant) basis gradients of located particles."""
-    return Basis(dofs=grid.cell_dofs[cells], N=N, dN=grid.grad_N[cells])
+    return Basis(dofs=grid.cell_dofs_T.take(cells, axis=1), N=N, dN=grid.grad_N.take(cells, axis=2))

@@ -19,7 +19,8 @@ from dolfin_mpm.grid import Grid
 from dolfin_mpm.locate import Basis, basis_at, locate
 from dolfin_mpm.materials.base import Material, check_range
 from dolfin_mpm.particles import Particles, Sink
-from dolfin_mpm.tensor import split_velocity_gradient
+from dolfin_mpm.tensor import det, split_velocity_gradient
+from dolfin_mpm.transfer import gradient, internal_force, interpolate, scatter
 
 __all__ = ["Solver", "SimulationError"]
 
@@ -149,33 +150,17 @@ class Solver:
                     f"grid at x = {P.x[i]} ({lost.sum()} particles outside)"
                 )
             self.sinks[self.on_exit].absorb(P, lost, self.time)
-            cells, N = cells[~lost], N[~lost]
+            cells, N = cells[~lost], N[:, ~lost]
         P.cell = cells
         return cells, N
 
-    def _scatter(self, basis: Basis, values: np.ndarray) -> np.ndarray:
-        """Local nodal sums of ``sum_p N_a(x_p) values_p`` (``values.shape=(n,)`` or ``(n, k)``)."""
-        num_nodes, idx = self.grid.num_nodes, basis.dofs.ravel()
-        if values.ndim == 1:
-            return np.bincount(idx, (basis.N * values[:, None]).ravel(), minlength=num_nodes)
-        w = basis.N[:, :, None] * values[:, None, :]
-        return self._scatter_nodal(basis, w)
-
-    def _scatter_nodal(self, basis: Basis, w: np.ndarray) -> np.ndarray:
-        """Local nodal sums of per-particle, per-node vectors ``w.shape=(n, nodes, k)``."""
-        num_nodes, idx = self.grid.num_nodes, basis.dofs.ravel()
-        w = w.reshape(-1, w.shape[2])
-        return np.stack([np.bincount(idx, w[:, c], minlength=num_nodes) for c in range(w.shape[1])], axis=1)
-
     def _p2g(self, basis: Basis) -> None:
         """Lumped mass, momentum, external force ``F`` and internal force ``R`` at the nodes."""
-        P, grid, g = self.particles, self.grid, self.grid.gdim
-        grid.assemble(grid.mass, self._scatter(basis, P.mass))
-        grid.assemble(grid.momentum, self._scatter(basis, P.mass[:, None] * P.v))
-        grid.assemble(grid.f_ext, grid.mass.x.array[:, None] * self.gravity)
-        # R_a = sum_p V_p sigma_p grad N_a(x_p)
-        sigma = P.sigma[:, :g, :g] * P.volume[:, None, None]
-        grid.assemble(grid.f_int, self._scatter_nodal(basis, np.einsum("nij,naj->nai", sigma, basis.dN)))
+        P, grid = self.particles, self.grid
+        m = grid.assemble(grid.mass, scatter(basis, P.mass, grid.num_nodes))
+        grid.assemble(grid.momentum, scatter(basis, P.mass[:, None] * P.v, grid.num_nodes))
+        grid.assemble(grid.f_ext, m[:, None] * self.gravity)
+        grid.assemble(grid.f_int, internal_force(basis, P.sigma, P.volume, grid.num_nodes))
 
     def _active_mass(self) -> tuple[np.ndarray, np.ndarray]:
         m = self.grid.mass.x.array
@@ -210,20 +195,19 @@ class Solver:
         P, grid, gdim = self.particles, self.grid, self.grid.gdim
         v_grid = grid.velocity.x.array.reshape(-1, gdim)
         a_grid = grid.acceleration.x.array.reshape(-1, gdim)
-        v_interp = np.einsum("na,nai->ni", basis.N, v_grid[basis.dofs])
+        v_interp = interpolate(basis, v_grid)
         if self.flip > 0.0:
-            a_interp = np.einsum("na,nai->ni", basis.N, a_grid[basis.dofs])
-            P.v = self.flip * (P.v + dt * a_interp) + (1.0 - self.flip) * v_interp
+            P.v = self.flip * (P.v + dt * interpolate(basis, a_grid)) + (1.0 - self.flip) * v_interp
         else:
             P.v = v_interp
         P.x[:, :gdim] += dt * v_interp
         if self.scheme == "MUSL":
             _, inv_m = self._active_mass()
-            p = grid.assemble(grid.momentum, self._scatter(basis, P.mass[:, None] * P.v))
+            p = grid.assemble(grid.momentum, scatter(basis, P.mass[:, None] * P.v, grid.num_nodes))
             v_grid = p * inv_m[:, None]
             self._apply_bcs(v_grid)
             grid.velocity.x.array[:] = v_grid.ravel()
-        return np.einsum("nai,naj->nij", v_grid[basis.dofs], basis.dN)
+        return gradient(basis, v_grid)
 
     def _update_stress(self, L: np.ndarray, dt: float) -> None:
         """Stress and state from each material; volume from ``det(I + dt L)``."""
@@ -238,8 +222,10 @@ class Solver:
                 P.sigma[idx] = material.update(P.sigma[idx], d[idx], W[idx], dt, state)
                 for name, a in state.items():
                     P.state[name][idx] = a
-        F_inc = np.eye(L.shape[1]) + dt * L
-        P.volume *= np.linalg.det(F_inc)
+        F_inc = dt * L
+        for i in range(L.shape[1]):
+            F_inc[:, i, i] += 1.0
+        P.volume *= det(F_inc)
 
     def _check_finite(self) -> None:
         P = self.particles
@@ -297,7 +283,7 @@ class Solver:
     def energies(self) -> dict[str, float]:
         """Kinetic, strain and gravitational potential energy [J] (per metre in 2D), and total."""
         P, g = self.particles, self.grid.gdim
-        kinetic = 0.5 * float(np.sum(P.mass * np.einsum("ni,ni->n", P.v, P.v)))
+        kinetic = 0.5 * float(np.sum(P.mass[:, None] * P.v**2))
         strain = 0.0
         for k, material in enumerate(self.materials):
             idx = P.material == k

@@ -1,8 +1,66 @@
-"""Vectorised tensor kinematics on stacks of 3x3 tensors (particle axis first)."""
+"""Vectorised algebra on stacks of small tensors, ``shape=(n, 3, 3)`` (particle axis first).
+
+Arguments may have any memory layout. The functions compute on component-first copies
+(each component one contiguous array over the particles, several times faster in numpy
+than strided access) and return particle-first *views* of component-first memory, so that
+chained calls copy nothing.
+"""
 
 import numpy as np
 
-__all__ = ["deviator", "invariants", "jaumann_rotation", "split_velocity_gradient"]
+__all__ = [
+    "component_first",
+    "det",
+    "deviator",
+    "invariants",
+    "jaumann_rotation",
+    "matmul",
+    "particle_first",
+    "rotate",
+    "split_velocity_gradient",
+]
+
+
+def component_first(a: np.ndarray) -> np.ndarray:
+    """Contiguous ``shape=(..., n)`` array of ``a.shape=(n, ...)`` (no copy when already so)."""
+    return np.ascontiguousarray(np.moveaxis(a, 0, -1))
+
+
+def particle_first(c: np.ndarray) -> np.ndarray:
+    """The ``shape=(n, ...)`` view of a component-first array."""
+    return np.moveaxis(c, -1, 0)
+
+
+def _mm(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """Component-first product of ``(k, m, n)`` and ``(m, l, n)`` stacks."""
+    C = np.empty((A.shape[0], B.shape[1], A.shape[2]))
+    for i in range(A.shape[0]):
+        for j in range(B.shape[1]):
+            C[i, j] = sum(A[i, k] * B[k, j] for k in range(A.shape[1]))
+    return C
+
+
+def matmul(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """``A @ B`` for stacks of matrices."""
+    return particle_first(_mm(component_first(A), component_first(B)))
+
+
+def rotate(sigma: np.ndarray, Q: np.ndarray) -> np.ndarray:
+    """``Q sigma Q^T`` for stacks of 3x3 tensors."""
+    Qc = component_first(Q)
+    return particle_first(_mm(_mm(Qc, component_first(sigma)), Qc.transpose(1, 0, 2)))
+
+
+def det(A: np.ndarray) -> np.ndarray:
+    """Determinants of a stack of 2x2 or 3x3 matrices, ``shape=(n,)``."""
+    a = component_first(A)
+    if a.shape[0] == 2:
+        return a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]
+    return (
+        a[0, 0] * (a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1])
+        - a[0, 1] * (a[1, 0] * a[2, 2] - a[1, 2] * a[2, 0])
+        + a[0, 2] * (a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0])
+    )
 
 
 def split_velocity_gradient(L: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -15,18 +73,23 @@ def split_velocity_gradient(L: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         ``(d, W)``, each ``shape=(n, 3, 3)``; in 2D the out-of-plane rows are zero
         (plane strain). The paper's spin is ``omega = -W``.
     """
-    n, g, _ = L.shape
-    L3 = np.zeros((n, 3, 3))
-    L3[:, :g, :g] = L
-    Lt = np.swapaxes(L3, 1, 2)
-    return 0.5 * (L3 + Lt), 0.5 * (L3 - Lt)
+    Lc = component_first(L)
+    g, n = Lc.shape[0], Lc.shape[2]
+    d, W = np.zeros((3, 3, n)), np.zeros((3, 3, n))
+    for i in range(g):
+        d[i, i] = Lc[i, i]
+        for j in range(i + 1, g):
+            d[i, j] = d[j, i] = 0.5 * (Lc[i, j] + Lc[j, i])
+            W[i, j] = 0.5 * (Lc[i, j] - Lc[j, i])
+            W[j, i] = -W[i, j]
+    return particle_first(d), particle_first(W)
 
 
 def jaumann_rotation(W: np.ndarray, dt: float) -> np.ndarray:
     """Incremental rotation of the Hughes–Winget update, ``(I - dt W/2)^-1 (I + dt W/2)``.
 
     Rotating ``sigma`` by it (``Q sigma Q^T``) integrates the spin terms of the
-    Zaremba–Jaumann rate exactly objectively, for any size of ``dt W``.
+    Zaremba–Jaumann rate incrementally objectively, for any size of ``dt W``.
 
     Args:
         W: spin [1/s], skew, ``shape=(n, 3, 3)``.
@@ -35,27 +98,27 @@ def jaumann_rotation(W: np.ndarray, dt: float) -> np.ndarray:
     Returns:
         Proper orthogonal ``Q``, ``shape=(n, 3, 3)``.
     """
-    A = 0.5 * dt * W
+    A = (0.5 * dt) * component_first(W)
     # Cayley transform in closed form: Q = I + 2 (A + A^2) / (1 + |a|^2), a = axial(A).
-    a2 = A[:, 0, 1] ** 2 + A[:, 0, 2] ** 2 + A[:, 1, 2] ** 2
-    Q = A + A @ A
-    Q *= (2.0 / (1.0 + a2))[:, None, None]
-    Q[:, 0, 0] += 1.0
-    Q[:, 1, 1] += 1.0
-    Q[:, 2, 2] += 1.0
-    return Q
+    a2 = A[0, 1] ** 2 + A[0, 2] ** 2 + A[1, 2] ** 2
+    Q = A + _mm(A, A)
+    Q *= 2.0 / (1.0 + a2)
+    for i in range(3):
+        Q[i, i] += 1.0
+    return particle_first(Q)
 
 
 def deviator(sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Pressure ``p = -tr(sigma)/3`` [Pa] and deviator ``s = sigma + p I``, ``shape=(n, 3, 3)``."""
-    p = -np.trace(sigma, axis1=1, axis2=2) / 3.0
-    s = sigma.copy()
+    s = component_first(sigma).copy()
+    p = -(s[0, 0] + s[1, 1] + s[2, 2]) / 3.0
     for i in range(3):
-        s[:, i, i] += p
-    return p, s
+        s[i, i] += p
+    return p, particle_first(s)
 
 
 def invariants(sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Pressure ``p`` and equivalent stress ``q = sqrt(3/2 s:s)`` [Pa], each ``shape=(n,)``."""
     p, s = deviator(sigma)
-    return p, np.sqrt(1.5 * np.einsum("nij,nij->n", s, s))
+    s = component_first(s)
+    return p, np.sqrt(1.5 * (s * s).sum(axis=(0, 1)))

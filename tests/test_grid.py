@@ -10,6 +10,7 @@ from mpi4py import MPI
 
 import dolfin_mpm as dm
 from dolfin_mpm.locate import basis_at, locate
+from dolfin_mpm.transfer import gradient, interpolate
 
 EPS = np.finfo(np.float64).eps
 
@@ -27,14 +28,14 @@ def test_partition_of_unity_and_gradients(unit_grid):
     cells, N = locate(unit_grid, x, np.full(len(x), -1, np.int32))
     assert np.all(cells >= 0)
     basis = basis_at(unit_grid, cells, N)
-    assert np.allclose(basis.N.sum(axis=1), 1.0, atol=10 * EPS)
+    assert np.allclose(basis.N.sum(axis=0), 1.0, atol=10 * EPS)
     assert np.all(basis.N >= -1e-12)
-    assert np.allclose(basis.dN.sum(axis=1), 0.0, atol=100 * EPS / unit_grid.h_min)
+    assert np.allclose(basis.dN.sum(axis=0), 0.0, atol=100 * EPS / unit_grid.h_min)
     # The basis reproduces linear functions and their gradients.
-    f = lambda y: 2.0 * y[:, 0] - 3.0 * y[:, 1] + 0.5  # noqa: E731
+    f = lambda y: np.c_[2.0 * y[:, 0] - 3.0 * y[:, 1] + 0.5]  # noqa: E731
     nodal = f(unit_grid.node_x)
-    assert np.allclose(np.einsum("na,na->n", basis.N, nodal[basis.dofs]), f(x), atol=1e-13)
-    assert np.allclose(np.einsum("nai,na->ni", basis.dN, nodal[basis.dofs]), [2.0, -3.0], atol=1e-12)
+    assert np.allclose(interpolate(basis, nodal), f(x), atol=1e-13)
+    assert np.allclose(gradient(basis, nodal)[:, 0, :], [2.0, -3.0], atol=1e-12)
 
 
 def test_locate_cheap_path_and_search(unit_grid):
@@ -50,7 +51,7 @@ def test_locate_cheap_path_and_search(unit_grid):
     outside = (x2[:, 0] > 1) | (x2[:, 1] < 0)
     assert np.all(moved[outside] == -1)
     lam = dm.locate.barycentric(unit_grid, x2[~outside], fresh[~outside])
-    assert np.all(lam.min(axis=1) >= -1e-12) and np.all(N[~outside].min(axis=1) >= -1e-12)
+    assert np.all(lam.min(axis=0) >= -1e-12) and np.all(N[:, ~outside].min(axis=0) >= -1e-12)
 
 
 def test_lumped_mass_equals_consistent_mass_row_sum():
@@ -100,7 +101,7 @@ def test_3d_grid_basis():
     cells, N = locate(grid, x, np.full(len(x), -1, np.int32))
     assert np.all(cells >= 0)
     b = basis_at(grid, cells, N)
-    assert np.allclose(b.N.sum(axis=1), 1.0) and np.allclose(b.dN.sum(axis=1), 0.0, atol=1e-12)
+    assert np.allclose(b.N.sum(axis=0), 1.0) and np.allclose(b.dN.sum(axis=0), 0.0, atol=1e-12)
     assert np.isclose(grid.comm.allreduce(grid.cell_volume[: msh.topology.index_map(3).size_local].sum(), MPI.SUM), 1.0)
 
 

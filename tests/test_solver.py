@@ -144,6 +144,7 @@ def test_region_sink_records_history():
     assert np.all(np.diff(times) > 0) and np.all(np.diff(masses) > 0)
 
 
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")
 def test_non_finite_state_stops_with_step_and_particle():
     grid = dm.Grid(rectangle((0, 0), (1, 1), (5, 5)))
     mat = dm.LinearElastic(E=1e3, nu=0.3, rho=1.0)

@@ -5,7 +5,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dolfin_mpm.materials.base import Material, check_range
-from dolfin_mpm.tensor import deviator, jaumann_rotation
+from dolfin_mpm.tensor import component_first, deviator, jaumann_rotation, particle_first, rotate
 
 __all__ = ["LinearElastic"]
 
@@ -43,15 +43,15 @@ class LinearElastic(Material):
         return float(np.sqrt((self.K + 4.0 * self.G / 3.0) / self.rho))
 
     def update(self, sigma, d, W, dt, state):
-        Q = jaumann_rotation(W, dt)
-        sigma = Q @ sigma @ np.swapaxes(Q, 1, 2)
-        tr = np.trace(d, axis1=1, axis2=2)
+        sigma = component_first(rotate(sigma, jaumann_rotation(W, dt)))
+        d = component_first(d)
         sigma += (2.0 * self.G * dt) * d
-        lam_dt = (self.K - 2.0 * self.G / 3.0) * dt * tr
+        lam_dt = (self.K - 2.0 * self.G / 3.0) * dt * (d[0, 0] + d[1, 1] + d[2, 2])
         for i in range(3):
-            sigma[:, i, i] += lam_dt
-        return sigma
+            sigma[i, i] += lam_dt
+        return particle_first(sigma)
 
     def strain_energy_density(self, sigma):
         p, s = deviator(sigma)
-        return p**2 / (2.0 * self.K) + np.einsum("nij,nij->n", s, s) / (4.0 * self.G)
+        s = component_first(s)
+        return p**2 / (2.0 * self.K) + (s * s).sum(axis=(0, 1)) / (4.0 * self.G)
