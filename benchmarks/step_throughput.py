@@ -13,18 +13,18 @@ import platform
 import time
 from pathlib import Path
 
-import dolfin_mpm as dm  # first: loads DOLFINx's libraries
 import numpy as np
 from dolfinx import mesh
 from mpi4py import MPI
 
+import dolfin_mpm as dm  # first: loads DOLFINx's libraries
 from dolfin_mpm.solver import STAGES
 
 
 def elastic_case(n_particles: int) -> dm.Solver:
     ppc = 4
-    nx = int(round(np.sqrt(n_particles / (2 * ppc))))  # the block fills 1.0 of the 1.2 m height
-    ny = int(round(1.2 * nx))
+    nx = round(np.sqrt(n_particles / (2 * ppc)))  # the block fills 1.0 of the 1.2 m height
+    ny = round(1.2 * nx)
     msh = mesh.create_rectangle(
         MPI.COMM_WORLD, [np.zeros(2), np.array([1.0, 1.2])], [nx, ny], mesh.CellType.triangle
     )
@@ -79,11 +79,15 @@ def main():
         "per_stage_ms_per_step": {s: med("ms_per_step", s) for s in STAGES},
     }
     if MPI.COMM_WORLD.rank == 0:
-        print(f"{result['particles']} particles, {args.runs} runs x {args.steps} steps, "
-              f"DOLFINx {result['dolfinx']}, {result['ranks']} rank(s); medians:")
+        print(
+            f"{result['particles']} particles, {args.runs} runs x {args.steps} steps, "
+            f"DOLFINx {result['dolfinx']}, {result['ranks']} rank(s); medians:"
+        )
         for s in STAGES:
-            print(f"  {s:12s} {result['per_stage_ms_per_step'][s]:8.2f} ms/step "
-                  f"{result['per_stage_particle_steps_per_s'][s]:10.2e} particle-steps/s")
+            print(
+                f"  {s:12s} {result['per_stage_ms_per_step'][s]:8.2f} ms/step "
+                f"{result['per_stage_particle_steps_per_s'][s]:10.2e} particle-steps/s"
+            )
         print(f"elastic: {result['particle_steps_per_s']:.1e} particle-steps/s")
         args.json.write_text(json.dumps(result, indent=2))
 

@@ -4,7 +4,7 @@ Import this package before ``dolfinx`` or ``petsc4py``: with the PyPI build of D
 libraries must be loaded first (done in :mod:`dolfin_mpm.compat`).
 """
 
-from dolfin_mpm import compat  # noqa: I001  (must come first)
+from dolfin_mpm import compat
 from dolfin_mpm.boundary import FixedBC, FrictionalWall, SlipBC
 from dolfin_mpm.grid import Grid
 from dolfin_mpm.io import Output
@@ -23,8 +23,8 @@ __all__ = [
     "Output",
     "Particles",
     "SimulationError",
-    "SlipBC",
     "Sink",
+    "SlipBC",
     "Solver",
     "compat",
     "seed",

@@ -48,6 +48,7 @@ class SlipBC(BoundaryCondition):
 
     Args:
         normal: wall normal, ``shape=(gdim,)`` (sign irrelevant).
+
     """
 
     normal: tuple = (1.0, 0.0)
@@ -72,6 +73,7 @@ class FrictionalWall(BoundaryCondition):
     Args:
         normal: outward normal of the material, pointing into the wall, ``shape=(gdim,)``.
         mu: friction coefficient, >= 0 (``tan`` of the wall friction angle).
+
     """
 
     normal: tuple = (1.0, 0.0)

@@ -79,6 +79,7 @@ def candidate_cells(tree, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
     Returns:
         ``(offsets, cells)``: the candidates of point ``i`` are ``cells[offsets[i]:offsets[i+1]]``.
+
     """
     points = np.ascontiguousarray(points, dtype=np.float64)
     if _NEW:

@@ -28,6 +28,7 @@ class Grid:
         grad_N: P1 basis gradients in each cell [1/m], ``shape=(gdim + 1, gdim, num_cells)``.
         node_x: node coordinates, ``shape=(num_nodes, 3)``.
         h_min: smallest cell height over the local cells [m].
+
     """
 
     def __init__(self, msh):
@@ -95,6 +96,7 @@ class Grid:
 
         Returns:
             The assembled nodal values as a view, same shape as ``values``.
+
         """
         u.x.array[:] = values.ravel()
         compat.scatter_reverse_add(u.x)

@@ -25,6 +25,7 @@ class XDMFSeries:
 
     Args:
         path: the ``.xdmf`` file; the data goes to the same name with ``.h5``.
+
     """
 
     def __init__(self, path):
@@ -34,7 +35,9 @@ class XDMFSeries:
         self.h5 = h5py.File(self.h5_path, "w")
         self.root = ET.Element("Xdmf", Version="3.0")
         domain = ET.SubElement(self.root, "Domain")
-        self.series = ET.SubElement(domain, "Grid", Name="series", GridType="Collection", CollectionType="Temporal")
+        self.series = ET.SubElement(
+            domain, "Grid", Name="series", GridType="Collection", CollectionType="Temporal"
+        )
         self.count = 0
         self.static: dict[str, str] = {}
 
@@ -48,7 +51,9 @@ class XDMFSeries:
         )  # fmt: skip
         item.text = f"{self.h5_path.name}:/{name}"
 
-    def write(self, t: float, points, cells, cell_type: str, fields: dict[str, np.ndarray], static_mesh=False):
+    def write(
+        self, t: float, points, cells, cell_type: str, fields: dict[str, np.ndarray], static_mesh=False
+    ):
         """Append the grid at time ``t``.
 
         Args:
@@ -57,6 +62,7 @@ class XDMFSeries:
             cell_type: XDMF topology type (``Polyvertex``, ``Triangle``, ``Tetrahedron``).
             fields: nodal data by name, ``shape=(num_points,)``, ``(num_points, 3)`` or ``(num_points, 9)``.
             static_mesh: store points and cells once and refer to them at every time.
+
         """
         k = self.count
         grid = ET.SubElement(self.series, "Grid", Name=f"t{k}", GridType="Uniform")
@@ -71,7 +77,13 @@ class XDMFSeries:
         self._item(geom, f"{mesh_group}/x", points)
         for name, values in fields.items():
             values = values.reshape(len(points), -1)
-            attr = ET.SubElement(grid, "Attribute", Name=name, AttributeType=_TYPES.get(values.shape[1], "Matrix"), Center="Node")
+            attr = ET.SubElement(
+                grid,
+                "Attribute",
+                Name=name,
+                AttributeType=_TYPES.get(values.shape[1], "Matrix"),
+                Center="Node",
+            )
             self._item(attr, f"step{k}/{name}", values if values.shape[1] > 1 else values[:, 0])
         self.count += 1
         self.h5.flush()

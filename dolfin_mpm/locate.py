@@ -25,6 +25,7 @@ class Basis:
         dofs: nodes of each particle's cell, ``shape=(gdim + 1, n)``.
         N: basis values, ``shape=(gdim + 1, n)``.
         dN: basis gradients [1/m], ``shape=(gdim + 1, gdim, n)``.
+
     """
 
     dofs: np.ndarray
@@ -55,6 +56,7 @@ def locate(grid: Grid, x: np.ndarray, cells: np.ndarray) -> tuple[np.ndarray, np
         ``(cells, N)``: the cell of each point (``-1`` if outside the local mesh) and the
         barycentric coordinates there, ``shape=(gdim+1, n)`` (the P1 basis values;
         undefined where ``cells == -1``).
+
     """
     known = cells >= 0
     cells = np.where(known, cells, 0).astype(np.int32)

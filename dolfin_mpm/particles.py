@@ -24,6 +24,7 @@ class Particles:
         id: global particle number, fixed for the life of the particle, ``shape=(n,)``.
         cell: local cell holding the particle, or -1 when unknown, ``shape=(n,)``.
         state: material state arrays by name, each with particle axis first.
+
     """
 
     _fields = ("x", "v", "mass", "volume", "sigma", "material", "id", "cell")
@@ -93,6 +94,7 @@ class Sink:
         momentum: total absorbed momentum [kg m/s], ``shape=(gdim,)``.
         count: number of absorbed particles.
         history: ``(time [s], cumulative mass [kg])`` after each step that absorbed something.
+
     """
 
     name: str

@@ -22,7 +22,7 @@ def reference_points(tdim: int, ppc: int) -> np.ndarray:
     stands for ``1/ppc`` of the cell, and the set integrates linear functions exactly.
     """
     if tdim == 2:
-        n = int(round(np.sqrt(ppc)))
+        n = round(np.sqrt(ppc))
         if ppc < 1 or n * n != ppc:
             raise ValueError(f"ppc must be a square number (1, 4, 9, ...) on triangles, got {ppc}")
         i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
@@ -84,6 +84,7 @@ def seed(
 
     Raises:
         ValueError: bad ``ppc``, or particles outside the grid.
+
     """
     if not isinstance(ppc, (int, np.integer)) or ppc < 1:
         raise ValueError(f"ppc must be an integer >= 1, got {ppc!r}")

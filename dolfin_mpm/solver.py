@@ -22,7 +22,7 @@ from dolfin_mpm.particles import Particles, Sink
 from dolfin_mpm.tensor import det, split_velocity_gradient
 from dolfin_mpm.transfer import gradient, internal_force, interpolate, scatter
 
-__all__ = ["Solver", "SimulationError"]
+__all__ = ["SimulationError", "Solver"]
 
 STAGES = ("locate", "basis", "p2g", "nodal_solve", "g2p", "constitutive")
 
@@ -49,6 +49,7 @@ class Solver:
         on_exit: ``"error"`` to stop when a particle leaves the grid, or the name of a sink
             in ``sinks`` that receives it.
         mass_tol: nodes with mass below ``mass_tol * max nodal mass`` are left at rest.
+
     """
 
     def __init__(
@@ -83,9 +84,13 @@ class Solver:
         self.scheme, self.flip, self.damping, self.mass_tol = scheme, flip, damping, mass_tol
         self.sinks = {s.name: s for s in sinks}
         if on_exit != "error" and on_exit not in self.sinks:
-            raise ValueError(f"on_exit must be 'error' or one of the sinks {list(self.sinks)}, got {on_exit!r}")
+            raise ValueError(
+                f"on_exit must be 'error' or one of the sinks {list(self.sinks)}, got {on_exit!r}"
+            )
         self.on_exit = on_exit
-        if len(particles) and not (0 <= particles.material.min() and particles.material.max() < len(self.materials)):
+        if len(particles) and not (
+            0 <= particles.material.min() and particles.material.max() < len(self.materials)
+        ):
             raise ValueError(f"particles.material must index the {len(self.materials)} materials")
         for m in self.materials:
             for name, shape in m.state_fields().items():
@@ -94,8 +99,8 @@ class Solver:
         offset = self.comm.exscan(len(particles)) or 0
         particles.id = offset + np.arange(len(particles), dtype=np.int64)
 
-        self.critical_dt = courant * self.comm.allreduce(grid.h_min, MPI.MIN) / max(
-            m.p_wave_speed() for m in self.materials
+        self.critical_dt = (
+            courant * self.comm.allreduce(grid.h_min, MPI.MIN) / max(m.p_wave_speed() for m in self.materials)
         )
         if dt is not None:
             check_range("dt", dt, 0.0, np.inf)
@@ -229,7 +234,11 @@ class Solver:
 
     def _check_finite(self) -> None:
         P = self.particles
-        bad = ~(np.isfinite(P.sigma).all(axis=(1, 2)) & np.isfinite(P.v).all(axis=1) & np.isfinite(P.x).all(axis=1))
+        bad = ~(
+            np.isfinite(P.sigma).all(axis=(1, 2))
+            & np.isfinite(P.v).all(axis=1)
+            & np.isfinite(P.x).all(axis=1)
+        )
         bad |= ~(P.volume > 0.0)
         if np.any(bad):
             i = np.flatnonzero(bad)[0]

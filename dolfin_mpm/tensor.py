@@ -72,6 +72,7 @@ def split_velocity_gradient(L: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     Returns:
         ``(d, W)``, each ``shape=(n, 3, 3)``; in 2D the out-of-plane rows are zero
         (plane strain). The paper's spin is ``omega = -W``.
+
     """
     Lc = component_first(L)
     g, n = Lc.shape[0], Lc.shape[2]
@@ -97,6 +98,7 @@ def jaumann_rotation(W: np.ndarray, dt: float) -> np.ndarray:
 
     Returns:
         Proper orthogonal ``Q``, ``shape=(n, 3, 3)``.
+
     """
     A = (0.5 * dt) * component_first(W)
     # Cayley transform in closed form: Q = I + 2 (A + A^2) / (1 + |a|^2), a = axial(A).

@@ -20,11 +20,15 @@ def scatter(basis: Basis, values: np.ndarray, num_nodes: int) -> np.ndarray:
 
     Returns:
         ``shape=(num_nodes,)`` or ``(num_nodes, k)``.
+
     """
     idx = basis.dofs.ravel()
     if values.ndim == 1:
         return np.bincount(idx, (basis.N * values).ravel(), minlength=num_nodes)
-    cols = [np.bincount(idx, (basis.N * values[:, c]).ravel(), minlength=num_nodes) for c in range(values.shape[1])]
+    cols = [
+        np.bincount(idx, (basis.N * values[:, c]).ravel(), minlength=num_nodes)
+        for c in range(values.shape[1])
+    ]
     return np.stack(cols, axis=1)
 
 
@@ -34,6 +38,7 @@ def internal_force(basis: Basis, sigma: np.ndarray, volume: np.ndarray, num_node
     Args:
         sigma: Cauchy stress [Pa], ``shape=(n, 3, 3)``.
         volume: particle volumes, ``shape=(n,)``.
+
     """
     idx = basis.dofs.ravel()
     g = basis.dN.shape[1]

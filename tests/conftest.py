@@ -1,15 +1,20 @@
-import dolfin_mpm  # noqa: F401  (loads DOLFINx's libraries in the right order)
 import numpy as np
 import pytest
 from dolfinx import mesh
 from mpi4py import MPI
+
+import dolfin_mpm
 
 
 def rectangle(x0, x1, n, diagonal="right"):
     """A triangle mesh of the box [x0, x1] with n = (nx, ny) cells."""
     diag = getattr(mesh.DiagonalType, diagonal)
     return mesh.create_rectangle(
-        MPI.COMM_WORLD, [np.array(x0, float), np.array(x1, float)], list(n), mesh.CellType.triangle, diagonal=diag
+        MPI.COMM_WORLD,
+        [np.array(x0, float), np.array(x1, float)],
+        list(n),
+        mesh.CellType.triangle,
+        diagonal=diag,
     )
 
 

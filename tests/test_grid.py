@@ -1,6 +1,6 @@
 """Grid, particle location, P1 basis, P2G/G2P identities and the lumped mass."""
 
-import dolfinx.fem.petsc  # noqa: F401
+import dolfinx.fem.petsc
 import numpy as np
 import pytest
 import ufl
@@ -102,10 +102,14 @@ def test_3d_grid_basis():
     assert np.all(cells >= 0)
     b = basis_at(grid, cells, N)
     assert np.allclose(b.N.sum(axis=0), 1.0) and np.allclose(b.dN.sum(axis=0), 0.0, atol=1e-12)
-    assert np.isclose(grid.comm.allreduce(grid.cell_volume[: msh.topology.index_map(3).size_local].sum(), MPI.SUM), 1.0)
+    assert np.isclose(
+        grid.comm.allreduce(grid.cell_volume[: msh.topology.index_map(3).size_local].sum(), MPI.SUM), 1.0
+    )
 
 
 def test_quadrilateral_mesh_is_refused():
-    msh = mesh.create_rectangle(MPI.COMM_WORLD, [np.zeros(2), np.ones(2)], [2, 2], mesh.CellType.quadrilateral)
+    msh = mesh.create_rectangle(
+        MPI.COMM_WORLD, [np.zeros(2), np.ones(2)], [2, 2], mesh.CellType.quadrilateral
+    )
     with pytest.raises(ValueError, match="affine simplices"):
         dm.Grid(msh)

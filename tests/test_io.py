@@ -40,7 +40,7 @@ def test_particle_and_grid_series_read_back(tmp_path):
     assert t == pytest.approx(solver.time)
     order = np.argsort(data["id"])
     assert np.allclose(data["velocity"][order, :2], P.v[np.argsort(P.id)])
-    p, q = invariants(P.sigma)
+    p, _ = invariants(P.sigma)
     assert np.allclose(data["p"][order], p[np.argsort(P.id)])
     assert np.allclose(data["stress"][order].reshape(-1, 3, 3), P.sigma[np.argsort(P.id)])
     # The moving geometry of the last step (meshio reads only the first, so read it directly).

@@ -8,7 +8,9 @@ import dolfin_mpm as dm
 from dolfin_mpm.seeding import reference_points
 
 
-@pytest.mark.parametrize("tdim, ppc", [(2, 1), (2, 4), (2, 9), (2, 16), (3, 1), (3, 4), (3, 8), (3, 32), (3, 64)])
+@pytest.mark.parametrize(
+    "tdim, ppc", [(2, 1), (2, 4), (2, 9), (2, 16), (3, 1), (3, 4), (3, 8), (3, 32), (3, 64)]
+)
 def test_reference_points_integrate_linears(tdim, ppc):
     pts = reference_points(tdim, ppc)
     assert pts.shape == (ppc, tdim)
@@ -26,13 +28,17 @@ def test_bad_ppc(tdim, ppc):
 
 def test_seed_from_separate_body_mesh():
     grid = dm.Grid(rectangle((0, 0), (1, 1), (6, 6)))
-    body = mesh.create_rectangle(MPI.COMM_WORLD, [np.array([0.2, 0.1]), np.array([0.5, 0.4])], [3, 3], mesh.CellType.triangle)
+    body = mesh.create_rectangle(
+        MPI.COMM_WORLD, [np.array([0.2, 0.1]), np.array([0.5, 0.4])], [3, 3], mesh.CellType.triangle
+    )
     mat = dm.LinearElastic(1e3, 0.3, 2.0)
     P = dm.seed(grid, mat, ppc=9, body=body)
     assert len(P) == 9 * 18
     assert np.isclose(P.volume.sum(), 0.09) and np.isclose(P.mass.sum(), 0.18)
     assert np.all(P.cell >= 0)
-    outside = mesh.create_rectangle(MPI.COMM_WORLD, [np.array([0.8, 0.8]), np.array([1.3, 1.2])], [2, 2], mesh.CellType.triangle)
+    outside = mesh.create_rectangle(
+        MPI.COMM_WORLD, [np.array([0.8, 0.8]), np.array([1.3, 1.2])], [2, 2], mesh.CellType.triangle
+    )
     with pytest.raises(ValueError, match="seeded outside the grid"):
         dm.seed(grid, mat, body=outside)
     with pytest.raises(ValueError, match="ppc must be an integer"):

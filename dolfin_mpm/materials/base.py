@@ -47,6 +47,7 @@ class Material(ABC):
 
         Returns:
             The stress at the end of the step, ``shape=(n, 3, 3)``.
+
         """
 
     @abstractmethod

@@ -18,6 +18,7 @@ class LinearElastic(Material):
         E: Young's modulus [Pa], > 0.
         nu: Poisson's ratio, in (-1, 0.5).
         rho: mass density [kg/m^3], > 0.
+
     """
 
     E: float
