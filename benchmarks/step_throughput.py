@@ -13,11 +13,13 @@ import platform
 import time
 from pathlib import Path
 
+import dolfin_mpm as dm  # first: loads DOLFINx's libraries
+
+# isort: split
 import numpy as np
 from dolfinx import mesh
 from mpi4py import MPI
 
-import dolfin_mpm as dm  # first: loads DOLFINx's libraries
 from dolfin_mpm.solver import STAGES
 
 

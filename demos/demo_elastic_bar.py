@@ -16,11 +16,12 @@ the total energy must stay constant.
 import argparse
 from pathlib import Path
 
+import dolfin_mpm as dm  # import first: it loads DOLFINx's libraries
+
+# isort: split
 import numpy as np
 from dolfinx import mesh
 from mpi4py import MPI
-
-import dolfin_mpm as dm  # import first: it loads DOLFINx's libraries
 
 
 def run(cells=30, periods=5.0, scheme="MUSL", output=None, plot=True, progress=True):

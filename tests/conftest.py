@@ -1,9 +1,10 @@
+import dolfin_mpm
+
+# isort: split
 import numpy as np
 import pytest
 from dolfinx import mesh
 from mpi4py import MPI
-
-import dolfin_mpm
 
 
 def rectangle(x0, x1, n, diagonal="right"):

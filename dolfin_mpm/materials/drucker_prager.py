@@ -1,0 +1,183 @@
+"""Elastic–viscoplastic Drucker–Prager material of Więckowski & Kowalska-Kubisk (§2).
+
+    f = q - m p,   m = 18 sin(phi) / (9 - sin^2 phi),   g = q (plastically isochoric)
+    p' = -K d_kk,  e = s^J / (2G) + gamma <Phi> dg/ds,  Phi = ((q - m p) / (m p))^N
+
+(The paper prints ``p' = K d_kk``; with ``p = -sigma_ii / 3`` compression must raise ``p``.)
+
+The equivalent viscoplastic strain rate follows the paper's norm, ``e_vp = sqrt(3/2 e_vp:e_vp)
+= 3/2 gamma <Phi>``. The viscoplastic part is integrated by backward Euler (radial return):
+``q = q_trial - 2 G dt e_vp``, closed form for N = 1, safeguarded Newton otherwise; it is
+stable for any ``dt`` and never overshoots the yield surface (``m p <= q <= q_trial``).
+
+The update is split so that a non-local average can enter between its parts:
+:meth:`trial` (elastic predictor with the Jaumann rotation) -> :meth:`increment` (local
+viscoplastic strain increment) -> :meth:`stress` (deviator scaled to
+``q = max(q_trial - 2 G de, 0)``: magnitude from the — possibly averaged — increment ``de``,
+direction from the trial deviator, so ``q`` never changes sign).
+
+No tension: a cohesionless material point whose trial pressure is ``p <= 0`` loses contact
+with its neighbours and becomes stress free (the apex of the cone); the deviatoric strain
+absorbed there, ``q_trial / 2G``, is recorded as viscoplastic.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from dolfin_mpm.materials.base import Material, check_range
+from dolfin_mpm.tensor import component_first, jaumann_rotation, particle_first, rotate
+
+__all__ = ["DruckerPragerViscoplastic", "Trial"]
+
+
+@dataclass
+class Trial:
+    """Elastic predictor of one step (component-first arrays).
+
+    Attributes:
+        p: pressure [Pa], ``shape=(n,)``.
+        s: deviator [Pa], ``shape=(3, 3, n)``.
+        q: equivalent stress of ``s`` [Pa], ``shape=(n,)``.
+
+    """
+
+    p: np.ndarray
+    s: np.ndarray
+    q: np.ndarray
+
+
+@dataclass(frozen=True)
+class DruckerPragerViscoplastic(Material):
+    """Hypo-elastic, Perzyna-viscoplastic Drucker–Prager solid with g = q.
+
+    Args:
+        E: Young's modulus [Pa], > 0.
+        nu: Poisson's ratio, in (-1, 0.5).
+        rho: mass density [kg/m^3], > 0.
+        phi: angle of internal friction [degrees], in (0, 90).
+        gamma: viscosity parameter [1/s], > 0.
+        N: exponent of the viscosity law, > 0.
+
+    """
+
+    E: float
+    nu: float
+    rho: float
+    phi: float
+    gamma: float
+    N: float = 1.0
+
+    def __post_init__(self):
+        check_range("E", self.E, 0.0, np.inf)
+        check_range("nu", self.nu, -1.0, 0.5)
+        check_range("rho", self.rho, 0.0, np.inf)
+        check_range("phi", self.phi, 0.0, 90.0)
+        check_range("gamma", self.gamma, 0.0, np.inf)
+        check_range("N", self.N, 0.0, np.inf)
+
+    @property
+    def K(self) -> float:
+        """Bulk modulus [Pa]."""
+        return self.E / (3.0 * (1.0 - 2.0 * self.nu))
+
+    @property
+    def G(self) -> float:
+        """Shear modulus [Pa]."""
+        return self.E / (2.0 * (1.0 + self.nu))
+
+    @property
+    def m(self) -> float:
+        """Slope of the yield line ``q = m p`` (plane-strain match to Mohr–Coulomb)."""
+        s = np.sin(np.radians(self.phi))
+        return 18.0 * s / (9.0 - s * s)
+
+    def p_wave_speed(self) -> float:
+        return float(np.sqrt((self.K + 4.0 * self.G / 3.0) / self.rho))
+
+    def state_fields(self):
+        # Equivalent viscoplastic strain rate (local and non-local) [1/s], accumulated strain [-].
+        return {"eps_vp_rate": (), "eps_vp_rate_nonlocal": (), "eps_vp": ()}
+
+    # -- the three parts of the update ---------------------------------------------------------
+    def trial(self, sigma: np.ndarray, d: np.ndarray, W: np.ndarray, dt: float) -> Trial:
+        """Elastic predictor: rotate by the Jaumann spin, add ``K tr(d) dt`` and ``2 G dev(d) dt``."""
+        s = component_first(rotate(sigma, jaumann_rotation(W, dt)))
+        dc = component_first(d)
+        s += (2.0 * self.G * dt) * dc
+        lam_dt = (self.K - 2.0 * self.G / 3.0) * dt * (dc[0, 0] + dc[1, 1] + dc[2, 2])
+        for i in range(3):
+            s[i, i] += lam_dt
+        p = -(s[0, 0] + s[1, 1] + s[2, 2]) / 3.0
+        for i in range(3):
+            s[i, i] += p
+        q = np.sqrt(1.5 * (s * s).sum(axis=(0, 1)))
+        return Trial(p=p, s=s, q=q)
+
+    def increment(self, trial: Trial, dt: float, correction: np.ndarray | None = None) -> np.ndarray:
+        """Local equivalent viscoplastic strain increment ``de = dt * e_vp`` (backward Euler).
+
+        Solves ``de = dt 3/2 gamma <Phi(q)>`` with ``q = q_trial - 2 G (de + correction)``
+        for ``de >= 0``: the local return mapping when ``correction`` is zero, and the local
+        part of the non-local fixed point otherwise. ``shape=(n,)``.
+        """
+        G, mp = self.G, self.m * trial.p
+        q_eff = trial.q if correction is None else trial.q - 2.0 * G * correction
+        de = np.zeros_like(trial.q)
+        apex = trial.p <= 0.0
+        de[apex] = trial.q[apex] / (2.0 * G)
+        act = ~apex & (q_eff > mp)
+        mp_a = mp[act]
+        x_tr = (q_eff[act] - mp_a) / mp_a  # relative overstress of the trial state
+        a = 3.0 * G * self.gamma * dt / mp_a
+        x = x_tr / (1.0 + a) if self.N == 1.0 else _solve_overstress(x_tr, a, self.N)
+        de[act] = (x_tr - x) * mp_a / (2.0 * G)
+        return de
+
+    def stress(self, trial: Trial, de: np.ndarray) -> np.ndarray:
+        """Stress with ``q = max(q_trial - 2 G de, 0)`` along the trial deviator, ``shape=(n, 3, 3)``."""
+        q = np.maximum(trial.q - 2.0 * self.G * de, 0.0)
+        scale = np.divide(q, trial.q, out=np.zeros_like(q), where=trial.q > 0.0)
+        scale[trial.p <= 0.0] = 0.0
+        sig = trial.s * scale
+        p = np.maximum(trial.p, 0.0)
+        for i in range(3):
+            sig[i, i] -= p
+        return particle_first(sig)
+
+    def update(self, sigma, d, W, dt, state):
+        trial = self.trial(sigma, d, W, dt)
+        de = self.increment(trial, dt)
+        self.record(state, de, de, dt)
+        return self.stress(trial, de)
+
+    @staticmethod
+    def record(state: dict[str, np.ndarray], de: np.ndarray, de_nonlocal: np.ndarray, dt: float) -> None:
+        """Store the local and non-local rates and accumulate the equivalent strain."""
+        state["eps_vp_rate"][:] = de / dt
+        state["eps_vp_rate_nonlocal"][:] = de_nonlocal / dt
+        state["eps_vp"][:] += de_nonlocal
+
+    def strain_energy_density(self, sigma):
+        sig = component_first(sigma)
+        p = -(sig[0, 0] + sig[1, 1] + sig[2, 2]) / 3.0
+        s2 = (sig * sig).sum(axis=(0, 1)) - 3.0 * p * p
+        return p * p / (2.0 * self.K) + s2 / (4.0 * self.G)
+
+
+def _solve_overstress(x_tr: np.ndarray, a: np.ndarray, N: float, tol: float = 1e-13) -> np.ndarray:
+    """Root ``x`` in ``[0, x_tr]`` of ``x + a x^N = x_tr`` (safeguarded Newton, vectorised)."""
+    lo, hi = np.zeros_like(x_tr), x_tr.copy()
+    x = np.minimum(x_tr, (x_tr / a) ** (1.0 / N))  # the root when a x^N dominates
+    for _ in range(100):
+        h = x + a * x**N - x_tr
+        lo = np.where(h < 0.0, x, lo)
+        hi = np.where(h > 0.0, x, hi)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x_new = x - h / (1.0 + a * N * x ** (N - 1.0))
+        bad = ~((x_new > lo) & (x_new < hi))
+        x_new[bad] = 0.5 * (lo[bad] + hi[bad])
+        if np.all(np.abs(x_new - x) <= tol * np.maximum(x_tr, 1e-300)):
+            return x_new
+        x = x_new
+    return x
