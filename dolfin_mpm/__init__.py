@@ -8,7 +8,8 @@ from dolfin_mpm import compat
 from dolfin_mpm.boundary import FixedBC, FrictionalWall, SlipBC
 from dolfin_mpm.grid import Grid
 from dolfin_mpm.io import Output
-from dolfin_mpm.materials import LinearElastic
+from dolfin_mpm.materials import DruckerPragerViscoplastic, LinearElastic
+from dolfin_mpm.nonlocal_average import NonlocalAverage
 from dolfin_mpm.particles import Particles, Sink
 from dolfin_mpm.seeding import seed
 from dolfin_mpm.solver import SimulationError, Solver
@@ -16,10 +17,12 @@ from dolfin_mpm.solver import SimulationError, Solver
 __version__ = "0.1.0"
 
 __all__ = [
+    "DruckerPragerViscoplastic",
     "FixedBC",
     "FrictionalWall",
     "Grid",
     "LinearElastic",
+    "NonlocalAverage",
     "Output",
     "Particles",
     "SimulationError",

@@ -18,6 +18,7 @@ from dolfin_mpm.boundary import BoundaryCondition
 from dolfin_mpm.grid import Grid
 from dolfin_mpm.locate import Basis, basis_at, locate
 from dolfin_mpm.materials.base import Material, check_range
+from dolfin_mpm.nonlocal_average import NonlocalAverage
 from dolfin_mpm.particles import Particles, Sink
 from dolfin_mpm.tensor import det, split_velocity_gradient
 from dolfin_mpm.transfer import gradient, internal_force, interpolate, scatter
@@ -67,6 +68,10 @@ class Solver:
         sinks: Sequence[Sink] = (),
         on_exit: str = "error",
         mass_tol: float = 1e-10,
+        averaging: NonlocalAverage | None = None,
+        fixed_point_tol: float = 1e-4,
+        fixed_point_max_iter: int = 50,
+        relaxation: float = 2.0 / 3.0,
     ):
         self.grid, self.particles = grid, particles
         self.materials = [materials] if isinstance(materials, Material) else list(materials)
@@ -88,6 +93,24 @@ class Solver:
                 f"on_exit must be 'error' or one of the sinks {list(self.sinks)}, got {on_exit!r}"
             )
         self.on_exit = on_exit
+        self.averaging = None if averaging is None or averaging.is_local else averaging
+        if self.averaging is not None and (
+            len(self.materials) != 1 or not hasattr(self.materials[0], "increment")
+        ):
+            raise ValueError(
+                "averaging needs exactly one material with a split update (DruckerPragerViscoplastic)"
+            )
+        check_range("fixed_point_tol", fixed_point_tol, 0.0, np.inf)
+        if not (isinstance(fixed_point_max_iter, (int, np.integer)) and fixed_point_max_iter >= 1):
+            raise ValueError(f"fixed_point_max_iter must be an integer >= 1, got {fixed_point_max_iter!r}")
+        check_range("relaxation", relaxation, 0.0, 1.0, closed=(False, True))
+        self.fixed_point_tol, self.fixed_point_max_iter, self.relaxation = (
+            fixed_point_tol,
+            fixed_point_max_iter,
+            relaxation,
+        )
+        #: Fixed-point loop statistics: steps, total and largest iteration count, unconverged steps.
+        self.fixed_point = {"steps": 0, "iterations": 0, "max_iterations": 0, "unconverged": 0}
         if len(particles) and not (
             0 <= particles.material.min() and particles.material.max() < len(self.materials)
         ):
@@ -134,7 +157,10 @@ class Solver:
         with self._stage("g2p"):
             L = self._g2p(basis, dt)
         with self._stage("constitutive"):
-            self._update_stress(L, dt)
+            if self.averaging is None:
+                self._update_stress(L, dt)
+            else:
+                self._update_stress_nonlocal(L, dt, basis)
         self.time += dt
         self.step_count += 1
         self._check_finite()
@@ -227,10 +253,61 @@ class Solver:
                 P.sigma[idx] = material.update(P.sigma[idx], d[idx], W[idx], dt, state)
                 for name, a in state.items():
                     P.state[name][idx] = a
+        self._update_volume(L, dt)
+
+    def _update_stress_nonlocal(self, L: np.ndarray, dt: float, basis: Basis) -> None:
+        """The paper's fixed-point loop: return mapping <-> non-local average <-> forces ``R``.
+
+        With ``de`` the local equivalent viscoplastic strain increments and ``A`` the
+        averaging, the step solves ``de = g(A de)``: every particle's increment follows
+        its own backward-Euler law with its stress relaxed by the *non-local* increment,
+        ``q = q_trial - 2 G (A de)``. Iterate 0 is the local return mapping; iterate k + 1
+        solves each particle's law with its neighbours' part, ``A de - de``, frozen, and
+        blends it with weight ``relaxation`` (a plain fixed-point iteration diverges, since
+        ``dt`` is many viscoplastic relaxation times). After each iterate the stresses and
+        ``R`` are evaluated; the loop ends when ``R`` stops changing.
+        """
+        P, grid, mat, avg = self.particles, self.grid, self.materials[0], self.averaging
+        d, W = split_velocity_gradient(L)
+        self._update_volume(L, dt)
+        with self._stage("neighbours"):
+            avg.update(P.x[:, : grid.gdim], P.volume, P.id)
+        with self._stage("return_mapping"):
+            trial = mat.trial(P.sigma, d, W, dt)
+            de = mat.increment(trial, dt)
+        f_ext = grid.f_ext.x.array[: grid.num_owned_nodes * grid.gdim]
+        scale = math.sqrt(self.comm.allreduce(float(f_ext @ f_ext), MPI.SUM))
+        R_old = None
+        for k in range(1, self.fixed_point_max_iter + 1):
+            with self._stage("averaging"):
+                de_bar = avg(de)
+            with self._stage("return_mapping"):
+                sigma = mat.stress(trial, de_bar)
+            R = grid.assemble(grid.f_int, internal_force(basis, sigma, P.volume, grid.num_nodes))
+            R = R[: grid.num_owned_nodes].ravel()
+            if R_old is not None:
+                norms = self.comm.allreduce(np.array([(R - R_old) @ (R - R_old), R @ R]), MPI.SUM)
+                if math.sqrt(norms[0]) <= self.fixed_point_tol * max(math.sqrt(norms[1]), scale, 1e-300):
+                    break
+            R_old = R.copy()
+            with self._stage("return_mapping"):
+                de_local = mat.increment(trial, dt, correction=de_bar - de)
+                de = (1.0 - self.relaxation) * de + self.relaxation * de_local
+        else:
+            self.fixed_point["unconverged"] += 1
+        stats = self.fixed_point
+        stats["steps"] += 1
+        stats["iterations"] += k
+        stats["max_iterations"] = max(stats["max_iterations"], k)
+        P.sigma = sigma
+        mat.record(P.state, de, de_bar, dt)
+
+    def _update_volume(self, L: np.ndarray, dt: float) -> None:
+        """Volumes from ``det(I + dt L)``."""
         F_inc = dt * L
         for i in range(L.shape[1]):
             F_inc[:, i, i] += 1.0
-        P.volume *= det(F_inc)
+        self.particles.volume *= det(F_inc)
 
     def _check_finite(self) -> None:
         P = self.particles
