@@ -14,6 +14,7 @@ from contextlib import contextmanager
 import numpy as np
 from mpi4py import MPI
 
+from dolfin_mpm.anderson import Anderson
 from dolfin_mpm.boundary import BoundaryCondition
 from dolfin_mpm.grid import Grid
 from dolfin_mpm.locate import Basis, basis_at, locate
@@ -69,9 +70,10 @@ class Solver:
         on_exit: str = "error",
         mass_tol: float = 1e-10,
         averaging: NonlocalAverage | None = None,
-        fixed_point_tol: float = 1e-4,
+        fixed_point_tol: float = 1e-3,
         fixed_point_max_iter: int = 50,
-        relaxation: float = 2.0 / 3.0,
+        relaxation: float = 1.0,
+        anderson_depth: int = 5,
     ):
         self.grid, self.particles = grid, particles
         self.materials = [materials] if isinstance(materials, Material) else list(materials)
@@ -104,6 +106,9 @@ class Solver:
         if not (isinstance(fixed_point_max_iter, (int, np.integer)) and fixed_point_max_iter >= 1):
             raise ValueError(f"fixed_point_max_iter must be an integer >= 1, got {fixed_point_max_iter!r}")
         check_range("relaxation", relaxation, 0.0, 1.0, closed=(False, True))
+        if not (isinstance(anderson_depth, (int, np.integer)) and anderson_depth >= 0):
+            raise ValueError(f"anderson_depth must be an integer >= 0, got {anderson_depth!r}")
+        self.anderson_depth = anderson_depth
         self.fixed_point_tol, self.fixed_point_max_iter, self.relaxation = (
             fixed_point_tol,
             fixed_point_max_iter,
@@ -263,9 +268,10 @@ class Solver:
         its own backward-Euler law with its stress relaxed by the *non-local* increment,
         ``q = q_trial - 2 G (A de)``. Iterate 0 is the local return mapping; iterate k + 1
         solves each particle's law with its neighbours' part, ``A de - de``, frozen, and
-        blends it with weight ``relaxation`` (a plain fixed-point iteration diverges, since
-        ``dt`` is many viscoplastic relaxation times). After each iterate the stresses and
-        ``R`` are evaluated; the loop ends when ``R`` stops changing.
+        blends it with weight ``relaxation`` (a plain fixed-point iteration on ``de`` diverges,
+        since ``dt`` is many viscoplastic relaxation times), accelerated by Anderson mixing.
+        After each iterate the stresses and ``R`` are evaluated; the loop ends when ``R``
+        stops changing.
         """
         P, grid, mat, avg = self.particles, self.grid, self.materials[0], self.averaging
         d, W = split_velocity_gradient(L)
@@ -277,7 +283,7 @@ class Solver:
             de = mat.increment(trial, dt)
         f_ext = grid.f_ext.x.array[: grid.num_owned_nodes * grid.gdim]
         scale = math.sqrt(self.comm.allreduce(float(f_ext @ f_ext), MPI.SUM))
-        R_old = None
+        R_old, mixer = None, Anderson(self.anderson_depth, self.comm)
         for k in range(1, self.fixed_point_max_iter + 1):
             with self._stage("averaging"):
                 de_bar = avg(de)
@@ -291,8 +297,9 @@ class Solver:
                     break
             R_old = R.copy()
             with self._stage("return_mapping"):
-                de_local = mat.increment(trial, dt, correction=de_bar - de)
-                de = (1.0 - self.relaxation) * de + self.relaxation * de_local
+                g = mat.increment(trial, dt, correction=de_bar - de)
+                g = (1.0 - self.relaxation) * de + self.relaxation * g
+                de = np.maximum(mixer(de, g), 0.0) if self.anderson_depth else g
         else:
             self.fixed_point["unconverged"] += 1
         stats = self.fixed_point

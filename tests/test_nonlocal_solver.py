@@ -1,0 +1,62 @@
+"""The solver's fixed-point loop with non-local averaging, on a small granular column collapse."""
+
+import numpy as np
+import pytest
+from conftest import rectangle
+
+import dolfin_mpm as dm
+
+SAND = {"E": 1e6, "nu": 0.3, "rho": 1500.0, "phi": 30.0, "gamma": 1e3}
+
+
+def collapse(averaging, steps=150, **kwargs):
+    grid = dm.Grid(rectangle((0, 0), (0.3, 0.15), (30, 15)))
+    sand = dm.DruckerPragerViscoplastic(**SAND)
+    P = dm.seed(grid, sand, ppc=4, where=lambda x: (x[0] < 0.1) & (x[1] < 0.1))
+    floor = grid.nodes_where(lambda x: np.isclose(x[1], 0.0))
+    wall = grid.nodes_where(lambda x: np.isclose(x[0], 0.0))
+    bcs = [dm.FrictionalWall(floor, normal=(0, -1), mu=0.4), dm.SlipBC(wall, normal=(1, 0))]
+    solver = dm.Solver(grid, P, sand, bcs=bcs, gravity=(0, -9.81), averaging=averaging, **kwargs)
+    for _ in range(steps):
+        solver.step()
+    return solver
+
+
+def test_zero_radius_is_the_local_model():
+    local = collapse(None, steps=60)
+    zero = collapse(dm.NonlocalAverage(0.0), steps=60)
+    assert np.array_equal(local.particles.sigma, zero.particles.sigma)
+    assert zero.fixed_point["steps"] == 0  # r = 0 switches the loop off
+
+
+def test_fixed_point_converges_to_the_non_local_law():
+    solver = collapse(dm.NonlocalAverage(0.02, "cubic"), fixed_point_max_iter=100)
+    P, mat, avg = solver.particles, solver.materials[0], solver.averaging
+    assert solver.fixed_point["unconverged"] == 0
+    de = P.state["eps_vp_rate"] * solver.dt
+    de_bar = P.state["eps_vp_rate_nonlocal"] * solver.dt
+    assert de.max() > 0.0  # the column is flowing
+    # The stored non-local increment is the average of the local ones ...
+    assert np.allclose(avg(de), de_bar, rtol=1e-12, atol=0)
+    # ... no tension, and particles without viscoplastic flow sit inside the yield cone.
+    assert np.all(np.isfinite(P.sigma))
+    p, q = dm.tensor.invariants(P.sigma)
+    still = (de == 0.0) & (p > 0.0)
+    assert np.all(p >= 0.0) and np.all(q[still] <= mat.m * p[still] * (1 + 1e-9))
+
+
+@pytest.mark.parametrize(
+    "kwargs, name",
+    [({"fixed_point_tol": 0.0}, "fixed_point_tol"), ({"fixed_point_max_iter": 0}, "fixed_point_max_iter"),
+     ({"relaxation": 0.0}, "relaxation"), ({"anderson_depth": -1}, "anderson_depth")],
+)  # fmt: skip
+def test_bad_loop_settings(kwargs, name):
+    with pytest.raises(ValueError, match=rf"^{name} must"):
+        collapse(dm.NonlocalAverage(0.02), steps=0, **kwargs)
+
+
+def test_averaging_needs_a_split_material():
+    grid = dm.Grid(rectangle((0, 0), (1, 1), (2, 2)))
+    mat = dm.LinearElastic(1e3, 0.3, 1.0)
+    with pytest.raises(ValueError, match="averaging needs"):
+        dm.Solver(grid, dm.seed(grid, mat, ppc=1), mat, averaging=dm.NonlocalAverage(0.1))
