@@ -53,13 +53,14 @@ class NonlocalAverage:
 
     def _rebuild(self, x: np.ndarray, ids: np.ndarray) -> None:
         pairs = cKDTree(x).query_pairs(self.radius + self.skin, output_type="ndarray")
+        pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]  # i < j, row-major: CSR order
         n = x.shape[0]
-        rows = np.concatenate([pairs[:, 0], pairs[:, 1], np.arange(n)])
-        cols = np.concatenate([pairs[:, 1], pairs[:, 0], np.arange(n)])
-        self._order = np.argsort(rows, kind="stable")
-        self._indices = cols[self._order].astype(np.int32)
-        self._indptr = np.r_[0, np.cumsum(np.bincount(rows, minlength=n))].astype(np.int32)
-        self._pairs, self._x_built, self._ids = pairs, x.copy(), ids.copy()
+        self._i, self._j = pairs[:, 0].copy(), pairs[:, 1].astype(np.int32)
+        indptr = np.r_[0, np.cumsum(np.bincount(self._i, minlength=n))].astype(np.int32)
+        # The weights are symmetric: A = U + U^T + I with U the strictly upper triangle, whose
+        # sparsity stays fixed until the next rebuild (only its values change each step).
+        self._U = csr_matrix((np.zeros(len(pairs)), self._j, indptr), shape=(n, n))
+        self._x_built, self._ids = x.copy(), ids.copy()
         self.rebuilds += 1
 
     def update(self, x: np.ndarray, volume: np.ndarray, ids: np.ndarray) -> None:
@@ -78,17 +79,28 @@ class NonlocalAverage:
             or np.max(np.sum((x - self._x_built) ** 2, axis=1), initial=0.0) > (0.5 * self.skin) ** 2
         ):
             self._rebuild(x, ids)
-        i, j = self._pairs[:, 0], self._pairs[:, 1]
-        s = np.sqrt(np.sum((x[i] - x[j]) ** 2, axis=1)) / self.radius
-        w = np.where(s <= 1.0, self._w(np.minimum(s, 1.0)), 0.0)
-        data = np.concatenate([w, w, np.ones(len(x))])[self._order]
-        n = len(x)
-        self._A = csr_matrix((data, self._indices, self._indptr), shape=(n, n))
+        s = np.zeros(len(self._i))
+        for c in range(x.shape[1]):
+            xc = np.ascontiguousarray(x[:, c])
+            dx = xc.take(self._i)
+            dx -= xc.take(self._j)
+            dx *= dx
+            s += dx
+        np.sqrt(s, out=s)
+        s *= 1.0 / self.radius
+        outside = s > 1.0
+        s[outside] = 1.0
+        w = self._w(s)
+        w[outside] = 0.0
+        self._U.data = w
         self._volume = volume
-        self._denominator = self._A @ volume
+        self._denominator = self._apply(volume)
+
+    def _apply(self, v: np.ndarray) -> np.ndarray:
+        return v + self._U @ v + self._U.T @ v
 
     def __call__(self, e: np.ndarray) -> np.ndarray:
         """The average of the field ``e`` (``shape=(n,)``) with the weights of the last update."""
         if self.is_local:
             return e
-        return (self._A @ (self._volume * e)) / self._denominator
+        return self._apply(self._volume * e) / self._denominator
