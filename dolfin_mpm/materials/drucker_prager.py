@@ -25,8 +25,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dolfin_mpm.materials.base import Material, check_range
-from dolfin_mpm.tensor import component_first, jaumann_rotation, particle_first, rotate
+from dolfin_mpm.materials.base import check_range
+from dolfin_mpm.materials.elastic import LinearElastic
+from dolfin_mpm.tensor import component_first, particle_first
 
 __all__ = ["DruckerPragerViscoplastic", "Trial"]
 
@@ -48,7 +49,7 @@ class Trial:
 
 
 @dataclass(frozen=True)
-class DruckerPragerViscoplastic(Material):
+class DruckerPragerViscoplastic(LinearElastic):
     """Hypo-elastic, Perzyna-viscoplastic Drucker–Prager solid with g = q.
 
     Args:
@@ -61,30 +62,15 @@ class DruckerPragerViscoplastic(Material):
 
     """
 
-    E: float
-    nu: float
-    rho: float
     phi: float
     gamma: float
     N: float = 1.0
 
     def __post_init__(self):
-        check_range("E", self.E, 0.0, np.inf)
-        check_range("nu", self.nu, -1.0, 0.5)
-        check_range("rho", self.rho, 0.0, np.inf)
+        super().__post_init__()
         check_range("phi", self.phi, 0.0, 90.0)
         check_range("gamma", self.gamma, 0.0, np.inf)
         check_range("N", self.N, 0.0, np.inf)
-
-    @property
-    def K(self) -> float:
-        """Bulk modulus [Pa]."""
-        return self.E / (3.0 * (1.0 - 2.0 * self.nu))
-
-    @property
-    def G(self) -> float:
-        """Shear modulus [Pa]."""
-        return self.E / (2.0 * (1.0 + self.nu))
 
     @property
     def m(self) -> float:
@@ -92,22 +78,14 @@ class DruckerPragerViscoplastic(Material):
         s = np.sin(np.radians(self.phi))
         return 18.0 * s / (9.0 - s * s)
 
-    def p_wave_speed(self) -> float:
-        return float(np.sqrt((self.K + 4.0 * self.G / 3.0) / self.rho))
-
     def state_fields(self):
         # Equivalent viscoplastic strain rate (local and non-local) [1/s], accumulated strain [-].
         return {"eps_vp_rate": (), "eps_vp_rate_nonlocal": (), "eps_vp": ()}
 
     # -- the three parts of the update ---------------------------------------------------------
     def trial(self, sigma: np.ndarray, d: np.ndarray, W: np.ndarray, dt: float) -> Trial:
-        """Elastic predictor: rotate by the Jaumann spin, add ``K tr(d) dt`` and ``2 G dev(d) dt``."""
-        s = component_first(rotate(sigma, jaumann_rotation(W, dt)))
-        dc = component_first(d)
-        s += (2.0 * self.G * dt) * dc
-        lam_dt = (self.K - 2.0 * self.G / 3.0) * dt * (dc[0, 0] + dc[1, 1] + dc[2, 2])
-        for i in range(3):
-            s[i, i] += lam_dt
+        """Elastic predictor: the hypo-elastic update of :class:`LinearElastic`, split into p and s."""
+        s = component_first(LinearElastic.update(self, sigma, d, W, dt, {}))
         p = -(s[0, 0] + s[1, 1] + s[2, 2]) / 3.0
         for i in range(3):
             s[i, i] += p
@@ -157,12 +135,6 @@ class DruckerPragerViscoplastic(Material):
         state["eps_vp_rate"][:] = de / dt
         state["eps_vp_rate_nonlocal"][:] = de_nonlocal / dt
         state["eps_vp"][:] += de_nonlocal
-
-    def strain_energy_density(self, sigma):
-        sig = component_first(sigma)
-        p = -(sig[0, 0] + sig[1, 1] + sig[2, 2]) / 3.0
-        s2 = (sig * sig).sum(axis=(0, 1)) - 3.0 * p * p
-        return p * p / (2.0 * self.K) + s2 / (4.0 * self.G)
 
 
 def _solve_overstress(x_tr: np.ndarray, a: np.ndarray, N: float, tol: float = 1e-13) -> np.ndarray:
