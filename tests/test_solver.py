@@ -135,3 +135,24 @@ def test_automatic_time_step():
     solver = dm.Solver(grid, dm.seed(grid, mat, ppc=1), mat, courant=0.4)
     h = 0.25 / np.sqrt(2)  # height of a right isosceles triangle with legs 0.25
     assert solver.dt == pytest.approx(0.4 * h / mat.p_wave_speed(), rel=1e-12)
+
+
+@pytest.mark.parametrize("mu", [0.2, 0.5])
+def test_block_sliding_on_a_frictional_floor_decelerates_at_mu_g(mu):
+    grid = dm.Grid(rectangle((0, 0), (1.0, 0.1), (40, 4)))
+    mat = dm.LinearElastic(E=1e6, nu=0.3, rho=1000.0)
+    P = dm.seed(grid, mat, ppc=4, where=lambda x: (x[0] < 0.3) & (x[1] < 0.05), velocity=(1.0, 0.0))
+    floor = dm.FrictionalWall(grid.nodes_where(lambda x: np.isclose(x[1], 0.0)), normal=(0, -1), mu=mu)
+    g = 9.81
+    # Start from the geostatic state so that the normal force is the weight from the first step.
+    P.sigma[:, 1, 1] = -mat.rho * g * (0.05 - P.x[:, 1])
+    P.sigma[:, 0, 0] = P.sigma[:, 2, 2] = P.sigma[:, 1, 1] * mat.nu / (1 - mat.nu)
+    solver = dm.Solver(grid, P, mat, bcs=[floor], gravity=(0, -g))
+    m = solver.total_mass()
+    times, speeds = [], []
+    while solver.time < 0.15:
+        solver.step()
+        times.append(solver.time)
+        speeds.append(solver.total_momentum()[0] / m)
+    deceleration = -np.polyfit(times, speeds, 1)[0]
+    assert deceleration == pytest.approx(mu * g, rel=0.03)
