@@ -68,7 +68,7 @@ class Grid:
 
         # Affine map x = x0 + J xi per cell; barycentric gradients are constant in a cell.
         X = msh.geometry.x[geom_dofs, : self.gdim]  # (num_cells, gdim+1, gdim)
-        self.x0 = X[:, 0, :].copy()
+        x0 = X[:, 0, :]
         J = np.swapaxes(X[:, 1:, :] - X[:, :1, :], 1, 2)  # (num_cells, gdim, tdim)
         detJ = np.linalg.det(J)
         if np.any(np.abs(detJ) <= 0.0):
@@ -78,7 +78,7 @@ class Grid:
         # Component-first copies: per-particle gathers from them read contiguous memory.
         self.K = np.ascontiguousarray(np.moveaxis(K, 0, -1))  # (tdim, gdim, num_cells)
         self.grad_N = np.ascontiguousarray(np.moveaxis(grad_N, 0, -1))  # (gdim+1, gdim, num_cells)
-        self.x0_T = np.ascontiguousarray(self.x0.T)  # (gdim, num_cells)
+        self.x0_T = np.ascontiguousarray(x0.T)  # (gdim, num_cells)
         self.cell_dofs_T = np.ascontiguousarray(self.cell_dofs.T)  # (gdim+1, num_cells)
         factorial = 2.0 if self.tdim == 2 else 6.0
         self.cell_volume = np.abs(detJ) / factorial

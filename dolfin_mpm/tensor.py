@@ -14,7 +14,6 @@ __all__ = [
     "deviator",
     "invariants",
     "jaumann_rotation",
-    "matmul",
     "particle_first",
     "rotate",
     "split_velocity_gradient",
@@ -38,11 +37,6 @@ def _mm(A: np.ndarray, B: np.ndarray) -> np.ndarray:
         for j in range(B.shape[1]):
             C[i, j] = sum(A[i, k] * B[k, j] for k in range(A.shape[1]))
     return C
-
-
-def matmul(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """``A @ B`` for stacks of matrices."""
-    return particle_first(_mm(component_first(A), component_first(B)))
 
 
 def rotate(sigma: np.ndarray, Q: np.ndarray) -> np.ndarray:

@@ -1,0 +1,31 @@
+"""Particle arrays: removal, selection and appending keep every field aligned."""
+
+import numpy as np
+
+import dolfin_mpm as dm
+
+
+def make(n, offset=0):
+    x = np.zeros((n, 3))
+    x[:, 0] = np.arange(n) + offset
+    P = dm.Particles(x, np.ones((n, 2)) * np.arange(n)[:, None], np.arange(n) + 1.0, np.ones(n))
+    P.id = np.arange(n) + offset
+    P.state["eps_vp"] = np.arange(n) * 2.0
+    return P
+
+
+def test_keep_take_extend_keep_fields_aligned():
+    P = make(6)
+    P.keep(P.id % 2 == 0)
+    assert list(P.id) == [0, 2, 4] and len(P) == 3
+    for name, a in P.arrays():
+        assert a.shape[0] == 3, name
+    assert np.array_equal(P.x[:, 0], P.id) and np.array_equal(P.state["eps_vp"], 2.0 * P.id)
+    Q = P.take(np.array([2, 0]))
+    assert list(Q.id) == [4, 0] and np.array_equal(Q.state["eps_vp"], [8.0, 0.0])
+    Q.mass[:] = -1.0  # a copy, not a view
+    assert np.all(P.mass > 0)
+    P.extend(make(2, offset=10))
+    assert list(P.id) == [0, 2, 4, 10, 11]
+    assert np.array_equal(P.state["eps_vp"], [0.0, 4.0, 8.0, 0.0, 2.0])
+    assert P.sigma.shape == (5, 3, 3) and P.v.shape == (5, 2)
