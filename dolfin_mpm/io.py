@@ -112,6 +112,7 @@ class Output:
         self.comm = comm
         self.particles = self.grid = None
         self.last_time: float | None = None
+        self._mesh = None
         if comm.rank == 0:
             self.folder.mkdir(parents=True, exist_ok=True)
             self.particles = XDMFSeries(self.folder / "particles.xdmf")
@@ -136,9 +137,9 @@ class Output:
             self.particles.write(solver.time, x, cells, "Polyvertex", fields)
         self._write_grid(solver)
 
-    def _write_grid(self, solver) -> None:
-        grid, comm = solver.grid, self.comm
-        msh, gdim = grid.mesh, grid.gdim
+    def _grid_mesh(self, grid):
+        """The static mesh, gathered once: owned nodes' P1 dofs, and on rank 0 the sorted mesh."""
+        msh = grid.mesh
         geom_dofs = compat.geometry_dofmap(msh)
         num_owned_cells = msh.topology.index_map(grid.tdim).size_local
         # Values at geometry nodes (P1: geometry node i of a cell carries dof i of the cell).
@@ -147,20 +148,27 @@ class Output:
         gmap = msh.geometry.index_map()
         owned = gmap.size_local
         global_nodes = gmap.local_to_global(np.arange(owned + gmap.num_ghosts, dtype=np.int32))
-        cells = _gather(comm, global_nodes[geom_dofs[:num_owned_cells]])
-        ids = _gather(comm, global_nodes[:owned])
-        x = _gather(comm, msh.geometry.x[:owned])
-        fields = {"mass": grid.mass.x.array[node_of_geom[:owned]]}
+        cells = _gather(self.comm, global_nodes[geom_dofs[:num_owned_cells]])
+        ids = _gather(self.comm, global_nodes[:owned])
+        x = _gather(self.comm, msh.geometry.x[:owned])
+        if self.comm.rank != 0:
+            return node_of_geom[:owned], None, None, None
+        order = np.argsort(ids)
+        return node_of_geom[:owned], x[order], cells.astype(np.int64), order
+
+    def _write_grid(self, solver) -> None:
+        grid = solver.grid
+        if self._mesh is None:
+            self._mesh = self._grid_mesh(grid)
+        nodes, points, cells, order = self._mesh
+        fields = {"mass": grid.mass.x.array[nodes]}
         for f in (grid.momentum, grid.velocity, grid.f_int, grid.f_ext, grid.f_contact):
-            fields[f.name] = _pad3(f.x.array.reshape(-1, gdim)[node_of_geom[:owned]])
-        fields = {name: _gather(comm, a) for name, a in fields.items()}
-        if comm.rank == 0:
-            order = np.argsort(ids)
+            fields[f.name] = _pad3(f.x.array.reshape(-1, grid.gdim)[nodes])
+        fields = {name: _gather(self.comm, a) for name, a in fields.items()}
+        if self.comm.rank == 0:
             cell_type = "Triangle" if grid.tdim == 2 else "Tetrahedron"
-            self.grid.write(
-                solver.time, x[order], cells.astype(np.int64), cell_type,
-                {name: a[order] for name, a in fields.items()}, static_mesh=True,
-            )  # fmt: skip
+            fields = {name: a[order] for name, a in fields.items()}
+            self.grid.write(solver.time, points, cells, cell_type, fields, static_mesh=True)
 
     def close(self) -> None:
         if self.comm.rank == 0:

@@ -197,14 +197,16 @@ class Solver:
         grid.assemble(grid.momentum, scatter(basis, P.mass[:, None] * P.v, grid.num_nodes))
         grid.assemble(grid.f_ext, m[:, None] * self.gravity)
         grid.assemble(grid.f_int, internal_force(basis, P.sigma, P.volume, grid.num_nodes))
+        self._inv_m = self._inverse_mass()
 
-    def _active_mass(self) -> tuple[np.ndarray, np.ndarray]:
+    def _inverse_mass(self) -> np.ndarray:
+        """``1 / m`` at nodes heavier than ``mass_tol * max m``, 0 elsewhere, ``shape=(num_nodes,)``."""
         m = self.grid.mass.x.array
         m_max = self.comm.allreduce(m.max() if m.size else 0.0, MPI.MAX)
         active = m > self.mass_tol * m_max
         inv_m = np.zeros_like(m)
         inv_m[active] = 1.0 / m[active]
-        return active, inv_m
+        return inv_m
 
     def _apply_bcs(self, v: np.ndarray) -> None:
         for bc in self.bcs:
@@ -213,7 +215,7 @@ class Solver:
     def _nodal_solve(self, dt: float) -> None:
         """Nodal velocities at the end of the step from ``M a = F + F_c - R``."""
         grid, gdim = self.grid, self.grid.gdim
-        _, inv_m = self._active_mass()
+        inv_m = self._inv_m
         m = grid.mass.x.array[:, None]
         v = grid.momentum.x.array.reshape(-1, gdim) * inv_m[:, None]
         f = (grid.f_ext.x.array - grid.f_int.x.array).reshape(-1, gdim)
@@ -238,9 +240,8 @@ class Solver:
             P.v = v_interp
         P.x[:, :gdim] += dt * v_interp
         if self.scheme == "MUSL":
-            _, inv_m = self._active_mass()
             p = grid.assemble(grid.momentum, scatter(basis, P.mass[:, None] * P.v, grid.num_nodes))
-            v_grid = p * inv_m[:, None]
+            v_grid = p * self._inv_m[:, None]
             self._apply_bcs(v_grid)
             grid.velocity.x.array[:] = v_grid.ravel()
         return gradient(basis, v_grid)
