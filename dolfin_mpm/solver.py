@@ -51,6 +51,13 @@ class Solver:
         on_exit: ``"error"`` to stop when a particle leaves the grid, or the name of a sink
             in ``sinks`` that receives it.
         mass_tol: nodes with mass below ``mass_tol * max nodal mass`` are left at rest.
+        averaging: non-local average of the viscoplastic strain increments; switches on the
+            paper's fixed-point loop (see :meth:`_step_nonlocal`). ``None`` or radius 0: local.
+        fixed_point_tol: loop tolerance on the relative change of ``R``, > 0.
+        fixed_point_max_iter: most iterates per step (a step that reaches it is counted in
+            ``fixed_point["unconverged"]``), >= 1.
+        relaxation: under-relaxation of the ``R`` iterates, in (0, 1].
+        anderson_depth: Anderson acceleration depth of the loop, >= 0 (0: plain iteration).
 
     """
 
@@ -157,15 +164,16 @@ class Solver:
             basis = basis_at(self.grid, cells, N)
         with self._stage("p2g"):
             self._p2g(basis)
-        with self._stage("nodal_solve"):
-            self._nodal_solve(dt)
-        with self._stage("g2p"):
-            L = self._g2p(basis, dt)
-        with self._stage("constitutive"):
-            if self.averaging is None:
+        if self.averaging is None:
+            with self._stage("nodal_solve"):
+                self._nodal_solve(dt)
+            with self._stage("g2p"):
+                v, v_grid, L = self._g2p(basis, dt)
+            with self._stage("constitutive"):
                 self._update_stress(L, dt)
-            else:
-                self._update_stress_nonlocal(L, dt, basis)
+            self._move(v, v_grid, dt)
+        else:
+            self._step_nonlocal(basis, dt)
         self.time += dt
         self.step_count += 1
         self._check_finite()
@@ -228,23 +236,36 @@ class Solver:
         grid.velocity.x.array[:] = v_new.ravel()
         grid.acceleration.x.array[:] = ((v_new - v) / dt).ravel()
 
-    def _g2p(self, basis: Basis, dt: float) -> np.ndarray:
-        """Particle velocities and positions from the grid; returns the velocity gradient."""
+    def _g2p(self, basis: Basis, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Particle velocities from the grid, without moving the particles.
+
+        Returns:
+            The new particle velocities (PIC/FLIP blend) and the grid velocity at the
+            particles that moves them, both ``shape=(n, gdim)``, and the velocity gradient
+            ``shape=(n, gdim, gdim)``.
+
+        """
         P, grid, gdim = self.particles, self.grid, self.grid.gdim
         v_grid = grid.velocity.x.array.reshape(-1, gdim)
         a_grid = grid.acceleration.x.array.reshape(-1, gdim)
         v_interp = interpolate(basis, v_grid)
         if self.flip > 0.0:
-            P.v = self.flip * (P.v + dt * interpolate(basis, a_grid)) + (1.0 - self.flip) * v_interp
+            v = self.flip * (P.v + dt * interpolate(basis, a_grid)) + (1.0 - self.flip) * v_interp
         else:
-            P.v = v_interp
-        P.x[:, :gdim] += dt * v_interp
+            v = v_interp
         if self.scheme == "MUSL":
-            p = grid.assemble(grid.momentum, scatter(basis, P.mass[:, None] * P.v, grid.num_nodes))
+            # Re-mapped momentum goes into `velocity`: `momentum` keeps the step's start.
+            p = grid.assemble(grid.velocity, scatter(basis, P.mass[:, None] * v, grid.num_nodes))
             v_grid = p * self._inv_m[:, None]
             self._apply_bcs(v_grid)
             grid.velocity.x.array[:] = v_grid.ravel()
-        return gradient(basis, v_grid)
+        return v, v_interp, gradient(basis, v_grid)
+
+    def _move(self, v: np.ndarray, v_grid: np.ndarray, dt: float) -> None:
+        """Commit the particle velocities ``v`` and move the particles with ``v_grid``."""
+        P = self.particles
+        P.v = v
+        P.x[:, : self.grid.gdim] += dt * v_grid
 
     def _update_stress(self, L: np.ndarray, dt: float) -> None:
         """Stress and state from each material; volume from ``det(I + dt L)``."""
@@ -259,63 +280,70 @@ class Solver:
                 P.sigma[idx] = material.update(P.sigma[idx], d[idx], W[idx], dt, state)
                 for name, a in state.items():
                     P.state[name][idx] = a
-        self._update_volume(L, dt)
+        P.volume *= self._volume_ratio(L, dt)
 
-    def _update_stress_nonlocal(self, L: np.ndarray, dt: float, basis: Basis) -> None:
-        """The paper's fixed-point loop: return mapping <-> non-local average <-> forces ``R``.
+    def _step_nonlocal(self, basis: Basis, dt: float) -> None:
+        """The paper's step (§3): a fixed-point loop on the internal forces ``R``.
 
-        With ``de`` the local equivalent viscoplastic strain increments and ``A`` the
-        averaging, the step solves ``de = g(A de)``: every particle's increment follows
-        its own backward-Euler law with its stress relaxed by the *non-local* increment,
-        ``q = q_trial - 2 G (A de)``. Iterate 0 is the local return mapping; iterate k + 1
-        solves each particle's law with its neighbours' part, ``A de - de``, frozen, and
-        blends it with weight ``relaxation`` (a plain fixed-point iteration on ``de`` diverges,
-        since ``dt`` is many viscoplastic relaxation times), accelerated by Anderson mixing.
-        After each iterate the stresses and ``R`` are evaluated; the loop ends when ``R``
-        stops changing.
+        Each iterate solves ``M a = F + F_c - R`` with the latest ``R``, maps the velocities
+        to the particles, runs the local return mapping (increments ``de``), averages them,
+        ``de_bar = A de``, and evaluates the stresses with the non-local increment -- direction
+        of the trial deviator, ``q = max(q_trial - 2 G max(de, de_bar), 0)`` (see
+        :mod:`dolfin_mpm.materials.drucker_prager`) -- and from them ``R`` again. The first iterate is the plain explicit step (``R`` of the
+        stresses at the start of the step); the loop ends when ``R`` (and with it ``F_c``; ``F``
+        is fixed) changes by less than ``fixed_point_tol`` relative to ``max(|R|, |F|)``. The
+        iterates of ``R`` are mixed with ``relaxation`` and Anderson acceleration.
         """
         P, grid, mat, avg = self.particles, self.grid, self.materials[0], self.averaging
-        d, W = split_velocity_gradient(L)
-        self._update_volume(L, dt)
+        owned = grid.num_owned_nodes * grid.gdim
         with self._stage("neighbours"):
             avg.update(P.x[:, : grid.gdim], P.volume, P.id)
-        with self._stage("return_mapping"):
-            trial = mat.trial(P.sigma, d, W, dt)
-            de = mat.increment(trial, dt)
-        f_ext = grid.f_ext.x.array[: grid.num_owned_nodes * grid.gdim]
-        scale = math.sqrt(self.comm.allreduce(float(f_ext @ f_ext), MPI.SUM))
-        R_old, mixer = None, Anderson(self.anderson_depth, self.comm)
+        f_ext = grid.f_ext.x.array[:owned]
+        scale_F = math.sqrt(self.comm.allreduce(float(f_ext @ f_ext), MPI.SUM))
+        R_in = grid.f_int.x.array[:owned].copy()
+        mixer = Anderson(self.anderson_depth, self.comm)
         for k in range(1, self.fixed_point_max_iter + 1):
-            with self._stage("averaging"):
-                de_bar = avg(de)
-            with self._stage("return_mapping"):
-                sigma = mat.stress(trial, de_bar)
-            R = grid.assemble(grid.f_int, internal_force(basis, sigma, P.volume, grid.num_nodes))
-            R = R[: grid.num_owned_nodes].ravel()
-            if R_old is not None:
-                norms = self.comm.allreduce(np.array([(R - R_old) @ (R - R_old), R @ R]), MPI.SUM)
-                if math.sqrt(norms[0]) <= self.fixed_point_tol * max(math.sqrt(norms[1]), scale, 1e-300):
+            with self._stage("nodal_solve"):
+                self._nodal_solve(dt)
+            with self._stage("g2p"):
+                v, v_grid, L = self._g2p(basis, dt)
+            with self._stage("constitutive"):
+                d, W = split_velocity_gradient(L)
+                with self._stage("return_mapping"):
+                    trial = mat.trial(P.sigma, d, W, dt)
+                    de = mat.increment(trial, dt)
+                with self._stage("averaging"):
+                    de_bar = avg(de)
+                with self._stage("return_mapping"):
+                    sigma = mat.stress(trial, de, de_bar)
+                volume = P.volume * self._volume_ratio(L, dt)
+            with self._stage("p2g"):
+                R = grid.assemble(grid.f_int, internal_force(basis, sigma, volume, grid.num_nodes))
+                R = R.ravel()[:owned]
+                norms = self.comm.allreduce(np.array([(R - R_in) @ (R - R_in), R @ R]), MPI.SUM)
+                if math.sqrt(norms[0]) <= self.fixed_point_tol * max(math.sqrt(norms[1]), scale_F, 1e-300):
                     break
-            R_old = R.copy()
-            with self._stage("return_mapping"):
-                g = mat.increment(trial, dt, correction=de_bar - de)
-                g = (1.0 - self.relaxation) * de + self.relaxation * g
-                de = np.maximum(mixer(de, g), 0.0) if self.anderson_depth else g
+                R_next = R_in + self.relaxation * (R - R_in)
+                R_in = mixer(R_in, R_next) if self.anderson_depth else R_next
+                grid.f_int.x.array[:owned] = R_in
+                grid.f_int.x.scatter_forward()
         else:
             self.fixed_point["unconverged"] += 1
         stats = self.fixed_point
         stats["steps"] += 1
         stats["iterations"] += k
         stats["max_iterations"] = max(stats["max_iterations"], k)
-        P.sigma = sigma
+        P.sigma, P.volume = sigma, volume
         mat.record(P.state, de, de_bar, dt)
+        self._move(v, v_grid, dt)
 
-    def _update_volume(self, L: np.ndarray, dt: float) -> None:
-        """Volumes from ``det(I + dt L)``."""
+    @staticmethod
+    def _volume_ratio(L: np.ndarray, dt: float) -> np.ndarray:
+        """Volume ratio of the step, ``det(I + dt L)``, ``shape=(n,)``."""
         F_inc = dt * L
         for i in range(L.shape[1]):
             F_inc[:, i, i] += 1.0
-        self.particles.volume *= det(F_inc)
+        return det(F_inc)
 
     def _check_finite(self) -> None:
         P = self.particles

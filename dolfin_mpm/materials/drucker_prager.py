@@ -12,9 +12,16 @@ stable for any ``dt`` and never overshoots the yield surface (``m p <= q <= q_tr
 
 The update is split so that a non-local average can enter between its parts:
 :meth:`trial` (elastic predictor with the Jaumann rotation) -> :meth:`increment` (local
-viscoplastic strain increment) -> :meth:`stress` (deviator scaled to
-``q = max(q_trial - 2 G de, 0)``: magnitude from the — possibly averaged — increment ``de``,
-direction from the trial deviator, so ``q`` never changes sign).
+viscoplastic strain increment ``de``) -> :meth:`stress` (deviator along the trial one,
+``q = q_trial - 2 G max(de, de_bar)`` with the non-local increment ``de_bar``, kept >= 0).
+
+How the non-local increment enters: the paper relaxes the stress by ``de_bar`` alone. Where a
+point's own increment exceeds its neighbourhood average (band centres, points next to a free
+surface) that leaves it far outside its yield cone: on a collapsing column, q / (m p) reached
+173 (99th percentile 15) -- spurious strength of a cohesionless material -- and the
+fixed-point loop cycled between the stress-free apex and this strength. The larger of the two
+increments lets neighbours drag a point into flow (a band is at least ``r`` wide) while no
+point ever carries more than its own law allows.
 
 No tension: a cohesionless material point whose trial pressure is ``p <= 0`` loses contact
 with its neighbours and becomes stress free (the apex of the cone); the deviatoric strain
@@ -92,28 +99,33 @@ class DruckerPragerViscoplastic(LinearElastic):
         q = np.sqrt(1.5 * (s * s).sum(axis=(0, 1)))
         return Trial(p=p, s=s, q=q)
 
-    def increment(self, trial: Trial, dt: float, correction: np.ndarray | None = None) -> np.ndarray:
+    def increment(self, trial: Trial, dt: float) -> np.ndarray:
         """Local equivalent viscoplastic strain increment ``de = dt * e_vp`` (backward Euler).
 
-        Solves ``de = dt 3/2 gamma <Phi(q)>`` with ``q = q_trial - 2 G (de + correction)``
-        for ``de >= 0``: the local return mapping when ``correction`` is zero, and the local
-        part of the non-local fixed point otherwise. ``shape=(n,)``.
+        Solves ``de = dt 3/2 gamma <Phi(q)>`` with ``q = q_trial - 2 G de`` for ``de >= 0``;
+        at the apex (``p <= 0``) ``de = q_trial / 2G``. ``shape=(n,)``.
         """
         G, mp = self.G, self.m * trial.p
-        q_eff = trial.q if correction is None else trial.q - 2.0 * G * correction
         de = np.zeros_like(trial.q)
         apex = trial.p <= 0.0
         de[apex] = trial.q[apex] / (2.0 * G)
-        act = ~apex & (q_eff > mp)
+        act = ~apex & (trial.q > mp)
         mp_a = mp[act]
-        x_tr = (q_eff[act] - mp_a) / mp_a  # relative overstress of the trial state
+        x_tr = (trial.q[act] - mp_a) / mp_a  # relative overstress of the trial state
         a = 3.0 * G * self.gamma * dt / mp_a
         x = x_tr / (1.0 + a) if self.N == 1.0 else _solve_overstress(x_tr, a, self.N)
         de[act] = (x_tr - x) * mp_a / (2.0 * G)
         return de
 
-    def stress(self, trial: Trial, de: np.ndarray) -> np.ndarray:
-        """Stress with ``q = max(q_trial - 2 G de, 0)`` along the trial deviator, ``shape=(n, 3, 3)``."""
+    def stress(self, trial: Trial, de: np.ndarray, de_nonlocal: np.ndarray | None = None) -> np.ndarray:
+        """Stress along the trial deviator, ``shape=(n, 3, 3)``.
+
+        ``q = q_trial - 2 G de`` with the local increment ``de``; with a non-local increment
+        ``de_nonlocal``, ``q = q_trial - 2 G max(de, de_nonlocal)``: neighbours can drag a
+        point into viscoplastic flow but never give it more strength than its own law.
+        """
+        if de_nonlocal is not None:
+            de = np.maximum(de, de_nonlocal)
         q = np.maximum(trial.q - 2.0 * self.G * de, 0.0)
         scale = np.divide(q, trial.q, out=np.zeros_like(q), where=trial.q > 0.0)
         scale[trial.p <= 0.0] = 0.0
@@ -131,10 +143,10 @@ class DruckerPragerViscoplastic(LinearElastic):
 
     @staticmethod
     def record(state: dict[str, np.ndarray], de: np.ndarray, de_nonlocal: np.ndarray, dt: float) -> None:
-        """Store the local and non-local rates and accumulate the equivalent strain."""
+        """Store the local and non-local rates and accumulate the applied equivalent strain."""
         state["eps_vp_rate"][:] = de / dt
         state["eps_vp_rate_nonlocal"][:] = de_nonlocal / dt
-        state["eps_vp"][:] += de_nonlocal
+        state["eps_vp"][:] += np.maximum(de, de_nonlocal)
 
 
 def _solve_overstress(x_tr: np.ndarray, a: np.ndarray, N: float, tol: float = 1e-13) -> np.ndarray:
