@@ -287,12 +287,13 @@ class Solver:
 
         Each iterate solves ``M a = F + F_c - R`` with the latest ``R``, maps the velocities
         to the particles, runs the local return mapping (increments ``de``), averages them,
-        ``de_bar = A de``, and evaluates the stresses with the non-local increment -- direction
-        of the trial deviator, ``q = max(q_trial - 2 G max(de, de_bar), 0)`` (see
-        :mod:`dolfin_mpm.materials.drucker_prager`) -- and from them ``R`` again. The first iterate is the plain explicit step (``R`` of the
-        stresses at the start of the step); the loop ends when ``R`` (and with it ``F_c``; ``F``
-        is fixed) changes by less than ``fixed_point_tol`` relative to ``max(|R|, |F|)``. The
-        iterates of ``R`` are mixed with ``relaxation`` and Anderson acceleration.
+        ``de_bar = A de``, evaluates the stresses with the non-local increment -- direction of
+        the trial deviator, ``q = max(q_trial - 2 G max(de, de_bar), 0)`` (see
+        :mod:`dolfin_mpm.materials.drucker_prager`) -- and from them ``R`` again. The first
+        iterate is the plain explicit step (``R`` of the stresses at the start of the step);
+        the loop ends when ``R`` (and with it ``F_c``; ``F`` is fixed) changes by less than
+        ``fixed_point_tol`` relative to ``max(|R|, |F|)``. The iterates of ``R`` are mixed with
+        ``relaxation`` and Anderson acceleration.
         """
         P, grid, mat, avg = self.particles, self.grid, self.materials[0], self.averaging
         owned = grid.num_owned_nodes * grid.gdim
