@@ -5,7 +5,7 @@ libraries must be loaded first (done in :mod:`dolfin_mpm.compat`).
 """
 
 from dolfin_mpm import compat
-from dolfin_mpm.boundary import FixedBC, FrictionalWall, SlipBC
+from dolfin_mpm.boundary import FixedBC, FrictionalWall, SlipBC, VelocityBC
 from dolfin_mpm.grid import Grid
 from dolfin_mpm.io import Output
 from dolfin_mpm.materials import DruckerPragerViscoplastic, LinearElastic
@@ -29,6 +29,7 @@ __all__ = [
     "Sink",
     "SlipBC",
     "Solver",
+    "VelocityBC",
     "compat",
     "seed",
 ]

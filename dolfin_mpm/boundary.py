@@ -10,7 +10,7 @@ import numpy as np
 
 from dolfin_mpm.materials.base import check_range
 
-__all__ = ["BoundaryCondition", "FixedBC", "FrictionalWall", "SlipBC"]
+__all__ = ["BoundaryCondition", "FixedBC", "FrictionalWall", "SlipBC", "VelocityBC"]
 
 
 def _unit(normal, gdim: int) -> np.ndarray:
@@ -40,6 +40,32 @@ class FixedBC(BoundaryCondition):
 
     def apply(self, v):
         v[self.nodes] = 0.0
+
+
+@dataclass
+class VelocityBC(BoundaryCondition):
+    """Prescribed velocity components at the nodes (a moving plate or a driven boundary).
+
+    Args:
+        velocity: [m/s], ``shape=(gdim,)`` for all nodes or ``(len(nodes), gdim)``; NaN
+            components are left free.
+
+    """
+
+    velocity: np.ndarray = None
+
+    def __post_init__(self):
+        super().__post_init__()
+        v = np.asarray(self.velocity, dtype=np.float64)
+        if v.ndim not in (1, 2) or (v.ndim == 2 and v.shape[0] != len(self.nodes)):
+            raise ValueError(f"velocity must have shape (gdim,) or ({len(self.nodes)}, gdim), got {v.shape}")
+        self.velocity = np.broadcast_to(v, (len(self.nodes), v.shape[-1]))
+        self._set = ~np.isnan(self.velocity)
+
+    def apply(self, v):
+        vi = v[self.nodes]
+        vi[self._set] = self.velocity[self._set]
+        v[self.nodes] = vi
 
 
 @dataclass

@@ -54,30 +54,48 @@ class NonlocalAverage:
     def _rebuild(self, x: np.ndarray, ids: np.ndarray) -> None:
         pairs = cKDTree(x).query_pairs(self.radius + self.skin, output_type="ndarray")
         pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]  # i < j, row-major: CSR order
-        n = x.shape[0]
-        self._i, self._j = pairs[:, 0].copy(), pairs[:, 1].astype(np.int32)
-        indptr = np.r_[0, np.cumsum(np.bincount(self._i, minlength=n))].astype(np.int32)
-        # The weights are symmetric: A = U + U^T + I with U the strictly upper triangle, whose
-        # sparsity stays fixed until the next rebuild (only its values change each step).
-        self._U = csr_matrix((np.zeros(len(pairs)), self._j, indptr), shape=(n, n))
+        self._set_pairs(pairs[:, 0], pairs[:, 1], x.shape[0])
         self._x_built, self._ids = x.copy(), ids.copy()
         self.rebuilds += 1
+
+    def _set_pairs(self, i: np.ndarray, j: np.ndarray, n: int) -> None:
+        """Store the pairs ``i < j`` (row-major) as the sparsity of ``U``.
+
+        The weights are symmetric: ``A = U + U^T + I`` with ``U`` the strictly upper triangle,
+        whose sparsity stays fixed between rebuilds (only its values change each step).
+        """
+        self._i, self._j = i.astype(np.int64), j.astype(np.int32)
+        indptr = np.r_[0, np.cumsum(np.bincount(self._i, minlength=n))].astype(np.int32)
+        self._U = csr_matrix((np.zeros(len(i)), self._j, indptr), shape=(n, n))
+
+    def _drop_removed(self, ids: np.ndarray) -> bool:
+        """Keep the pairs of the particles still present, when ``ids`` only lost some, in order."""
+        if self._ids is None or len(ids) > len(self._ids):
+            return False
+        old = np.minimum(np.searchsorted(self._ids, ids), len(self._ids) - 1)
+        if not (np.array_equal(self._ids[old], ids) and np.all(np.diff(old) > 0)):
+            return False
+        new_index = np.full(len(self._ids), -1, dtype=np.int64)
+        new_index[old] = np.arange(len(ids))
+        i, j = new_index[self._i], new_index[self._j]
+        both = (i >= 0) & (j >= 0)
+        self._set_pairs(i[both], j[both], len(ids))  # the order i < j, row-major, is kept
+        self._x_built, self._ids = self._x_built[old], ids.copy()
+        return True
 
     def update(self, x: np.ndarray, volume: np.ndarray, ids: np.ndarray) -> None:
         """Weights for the current positions ``x`` (``(n, gdim)``) and volumes ``(n,)``.
 
-        ``ids`` (``(n,)``) identify the particles: the pair list is rebuilt when they change
-        or when a particle has moved more than half the skin since the last rebuild.
+        ``ids`` (``(n,)``) identify the particles: the pair list is rebuilt when
+        particles were added or reordered, or when one has moved more than half the skin since
+        the last rebuild; particles that were removed (sinks) only drop their pairs.
         """
         if self.is_local:
             return
         x = np.ascontiguousarray(x)
-        if (
-            self._ids is None
-            or len(ids) != len(self._ids)
-            or not np.array_equal(ids, self._ids)
-            or np.max(np.sum((x - self._x_built) ** 2, axis=1), initial=0.0) > (0.5 * self.skin) ** 2
-        ):
+        if self._ids is None or not (np.array_equal(ids, self._ids) or self._drop_removed(ids)):
+            self._rebuild(x, ids)
+        elif np.max(np.sum((x - self._x_built) ** 2, axis=1), initial=0.0) > (0.5 * self.skin) ** 2:
             self._rebuild(x, ids)
         s = np.zeros(len(self._i))
         for c in range(x.shape[1]):

@@ -26,3 +26,17 @@ def test_elastic_bar_musl_period_and_energy(tmp_path):
 def test_elastic_bar_usl_period(scheme):
     r = load("demo_elastic_bar").run(cells=20, periods=2.5, scheme=scheme, progress=False)
     assert abs(r["period"] / r["period_exact"] - 1.0) < 0.01
+
+
+def test_shear_band_width_set_by_the_radius_not_the_mesh():
+    demo = load("demo_shear_band")
+    r = 4e-3
+    local = [demo.run(cells, 0.0) for cells in (10, 20)]
+    nonlocal_ = [demo.run(cells, r) for cells in (10, 20)]
+    # Local model: the band is the weak row, one cell wide.
+    assert local[0]["width_eps_vp"] / local[1]["width_eps_vp"] > 1.6
+    # Non-local: the widths of e_vp_bar and of the velocity jump follow r, not h.
+    for key in ("width_e_vp_bar", "width_velocity"):
+        w = [run[key] for run in nonlocal_]
+        assert max(w) / min(w) < 1.2 and min(w) > r
+    assert all(run["mean_iterations"] < 5 for run in nonlocal_)

@@ -61,8 +61,16 @@ def test_skin_reuse_equals_fresh_rebuild():
     x = x + 0.05  # a large move forces a rebuild
     kept.update(x, volume, ids)
     assert kept.rebuilds == 2
-    kept.update(x[:-1], volume[:-1], ids[:-1])  # a particle removed
+    # Removed particles (sinks) only drop their pairs; added or reordered ones force a rebuild.
+    gone = rng.random(len(x)) < 0.1
+    kept.update(x[~gone], volume[~gone], ids[~gone])
+    fresh = NonlocalAverage(0.1, "cubic", skin=0.0)
+    fresh.update(x[~gone], volume[~gone], ids[~gone])
+    assert kept.rebuilds == 2 and np.allclose(kept(e[~gone]), fresh(e[~gone]), rtol=1e-13)
+    kept.update(x[::-1], volume[::-1], ids[::-1])
     assert kept.rebuilds == 3
+    kept.update(x, volume, ids)
+    assert kept.rebuilds == 4
 
 
 def test_local_switch_and_bad_input():

@@ -1,0 +1,235 @@
+"""# Shear band in a granular layer: does its width depend on the mesh?
+
+The paper's central claim is that the non-local viscoplastic strain rate makes the width of
+shear bands a property of the material (the radius r) rather than of the mesh. This demo
+checks it on the simplest specimen that forms one band: a layer of the paper's sand, height
+H, in a direct-shear box: the bottom plate and the lower parts of the side walls are fixed,
+the top plate and the upper parts move at the speed V.
+
+The layer starts under an isotropic pressure p0. In the row of cells at the split of the box
+the horizontal and out-of-plane stresses are 10 % lower (the imperfection): that row has a
+lower pressure and so a lower strength, q = m p, and yields first, and the band forms along
+it. The side walls impose the jump of velocity across that row; material passes through the
+walls into a sink. The profiles are taken over the middle half of the width.
+
+Three meshes, h, h/2 and h/4, each with the local model (r = 0) and the non-local one. Over
+the second half of the run three profiles across the layer are measured: the applied
+viscoplastic strain, the non-local rate e_vp_bar (time-averaged), both by their full width
+at half maximum (FWHM), and the mean horizontal velocity, by the distance over which it
+rises from 10 % to 90 % of the plate speed.
+
+    python demos/demo_shear_band.py [--cells 10 20 40] [--radius 4e-3] [--output results/shear_band]
+"""
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import dolfin_mpm as dm  # import first: it loads DOLFINx's libraries
+
+# isort: split
+import numpy as np
+from dolfinx import mesh
+from mpi4py import MPI
+
+H = 0.02  # layer height and width [m]
+SAND = {"E": 1e6, "nu": 0.3, "rho": 1500.0, "phi": 30.0, "gamma": 1e3, "N": 1.0}  # the paper's
+
+
+def run(cells, radius, weight="cubic", shear=0.05, rate=5.0, p0=1e4, imperfection=0.1, progress=False):
+    """Shear a layer of ``cells`` x ``cells`` squares (two triangles each) to the strain ``shear``.
+
+    Args:
+        cells: cells across the layer height H.
+        radius: non-local radius r [m]; 0 for the local model.
+        weight: the averaging weight.
+        shear: imposed shear strain at the end, ``rate * t_end``.
+        rate: imposed shear rate [1/s] (plate speed / H).
+        p0: initial pressure [Pa].
+        imperfection: relative drop of sigma_xx and sigma_zz in the weak row.
+
+    Returns:
+        dict with the profiles across the layer (bin centres ``y`` relative to the weak row)
+        and the measured widths [m].
+
+    """
+    comm = MPI.COMM_WORLD
+    if comm.size > 1:
+        raise RuntimeError("this demo bins particles on one rank; run it serially")
+    h = H / cells
+    # ## Grid, material and particles under the initial stress
+    # Two spare columns of cells on each side: material pushed through a wall ends in a sink.
+    grid = dm.Grid(
+        mesh.create_rectangle(
+            comm,
+            [np.array([-2 * h, 0.0]), np.array([H + 2 * h, H])],
+            [cells + 4, cells],
+            mesh.CellType.triangle,
+        )
+    )
+    sand = dm.DruckerPragerViscoplastic(**SAND)
+    P = dm.seed(grid, sand, ppc=4, where=lambda x: (x[0] > 0.0) & (x[0] < H))
+    P.sigma[:] = -p0 * np.eye(3)
+    y_weak = 0.5 * H - 0.5 * h  # centre of the row of cells just below mid-height
+    weak = np.abs(P.x[:, 1] - y_weak) < 0.5 * h
+    P.sigma[weak, 0, 0] *= 1.0 - imperfection
+    P.sigma[weak, 2, 2] *= 1.0 - imperfection
+
+    # ## The box: bottom plate and lower walls fixed, top plate and upper walls at V = rate H
+    V = rate * H
+    sides = grid.nodes_where(lambda x: np.isclose(x[0], 0.0) | np.isclose(x[0], H))
+    side_v = np.c_[np.where(grid.node_x[sides, 1] > y_weak, V, 0.0), np.full(len(sides), np.nan)]
+    bcs = [
+        dm.VelocityBC(sides, side_v),
+        dm.VelocityBC(grid.nodes_where(lambda x: np.isclose(x[1], 0.0)), (0.0, 0.0)),
+        dm.VelocityBC(grid.nodes_where(lambda x: np.isclose(x[1], H)), (V, 0.0)),
+    ]
+    averaging = dm.NonlocalAverage(radius, weight) if radius > 0 else None
+    beyond_walls = dm.Sink("beyond walls", region=lambda x: (x[0] < -0.5 * h) | (x[0] > H + 0.5 * h))
+    solver = dm.Solver(grid, P, sand, bcs=bcs, averaging=averaging, sinks=[beyond_walls])
+
+    # ## Time loop; the second half accumulates the band's profiles
+    t_end = shear / rate
+    n_steps = int(np.ceil(t_end / solver.dt))
+    eps0 = None
+    t0 = time.perf_counter()
+    for k in range(1, n_steps + 1):
+        solver.step()
+        if k == n_steps // 2:
+            eps0, x_mid, t_mid = P.state["eps_vp"].copy(), P.x[:, 0].copy(), solver.time
+            e_bar_sum = np.zeros(len(P))
+            ids = P.id.copy()
+        if eps0 is not None:  # accumulate over the particles present since mid-run
+            e_bar_sum[np.searchsorted(ids, P.id)] += P.state["eps_vp_rate_nonlocal"] * solver.dt
+        if progress and k % 200 == 0:
+            print(f"  h = {1e3 * h:.3g} mm, r = {1e3 * radius:.3g} mm: step {k}/{n_steps}", flush=True)
+    elapsed = time.perf_counter() - t0
+
+    # ## Profiles across the layer over the middle half of the width
+    middle = (P.x[:, 0] > 0.25 * H) & (P.x[:, 0] < 0.75 * H)
+    edges = np.arange(0.0, H + 1e-12, 0.5 * h)
+    y = 0.5 * (edges[1:] + edges[:-1])
+
+    def profile(values):
+        idx = np.clip(np.digitize(P.x[middle, 1], edges) - 1, 0, len(y) - 1)
+        count = np.bincount(idx, minlength=len(y))
+        return np.bincount(idx, values[middle], minlength=len(y)) / np.maximum(count, 1)
+
+    since_mid = np.searchsorted(ids, P.id)
+    eps = profile(P.state["eps_vp"] - eps0[since_mid])
+    e_bar = profile(e_bar_sum[since_mid])
+    vx = profile((P.x[:, 0] - x_mid[since_mid]) / (solver.time - t_mid))  # mean velocity
+    fp = solver.fixed_point
+    return {
+        "h": h,
+        "radius": radius,
+        "y": y - y_weak,
+        "eps_vp": eps,
+        "e_vp_bar": e_bar,
+        "vx": vx / V,
+        "width_eps_vp": fwhm(y, eps),
+        "width_e_vp_bar": fwhm(y, e_bar),
+        "width_velocity": jump_width(y, vx / V),
+        "particles": len(P),
+        "steps": n_steps,
+        "seconds": elapsed,
+        "mean_iterations": fp["iterations"] / fp["steps"] if fp["steps"] else 1.0,
+    }
+
+
+def fwhm(y, f):
+    """Full width at half maximum of the peak of ``f(y)`` (linear interpolation) [m]."""
+    k = int(np.argmax(f))
+    half = 0.5 * f[k]
+    lo = k
+    while lo > 0 and f[lo - 1] > half:
+        lo -= 1
+    hi = k
+    while hi < len(f) - 1 and f[hi + 1] > half:
+        hi += 1
+    left = y[lo] if lo == 0 else y[lo - 1] + (half - f[lo - 1]) / (f[lo] - f[lo - 1]) * (y[lo] - y[lo - 1])
+    right = y[hi] if hi == len(f) - 1 else y[hi] + (f[hi] - half) / (f[hi] - f[hi + 1]) * (y[hi + 1] - y[hi])
+    return float(right - left)
+
+
+def jump_width(y, v):
+    """Distance over which a monotone-ish profile ``v(y)`` rises from 10 % to 90 % of its jump [m]."""
+    v = np.maximum.accumulate(v)  # monotone envelope
+    lo, hi = v[0] + 0.1 * (v[-1] - v[0]), v[0] + 0.9 * (v[-1] - v[0])
+    return float(np.interp(hi, v, y) - np.interp(lo, v, y))
+
+
+def study(cells=(10, 20, 40), radius=4e-3, weight="cubic", progress=True, **kwargs):
+    """Local and non-local runs on each mesh; returns ``{"local": [...], "nonlocal": [...]}``."""
+    return {
+        name: [run(n, r, weight, progress=progress, **kwargs) for n in cells]
+        for name, r in (("local", 0.0), ("nonlocal", radius))
+    }
+
+
+def table(results) -> str:
+    lines = [
+        "model     h [mm]  FWHM eps_vp [mm]  FWHM e_vp_bar [mm]  velocity 10-90% [mm]  iterations  time [s]"
+    ]
+    for name, runs in results.items():
+        for r in runs:
+            lines.append(
+                f"{name:8s} {1e3 * r['h']:7.3f} {1e3 * r['width_eps_vp']:17.2f} "
+                f"{1e3 * r['width_e_vp_bar']:19.2f} {1e3 * r['width_velocity']:21.2f} "
+                f"{r['mean_iterations']:11.2f} {r['seconds']:9.1f}"
+            )
+    for name, runs in results.items():
+        spread = [
+            f"{key} {100 * (max(w) / min(w) - 1):.0f} %"
+            for key in ("width_eps_vp", "width_e_vp_bar", "width_velocity")
+            for w in [[r[key] for r in runs]]
+        ]
+        lines.append(f"{name}: largest / smallest width - 1 across the meshes: " + ", ".join(spread))
+    return "\n".join(lines)
+
+
+def plot(results, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4.2), sharey=True)
+    labels = ("viscoplastic strain, 2nd half", "time-averaged e_vp_bar", "mean v_x / V, 2nd half")
+    for ax, key, label in zip(axes, ("eps_vp", "e_vp_bar", "vx"), labels):
+        for name, style in (("local", "--"), ("nonlocal", "-")):
+            for r in results[name]:
+                f = r[key] / (r[key].max() if key != "vx" else 1.0)
+                ax.plot(f, 1e3 * r["y"], style, label=f"{name}, h = {1e3 * r['h']:.2g} mm")
+        ax.set_xlabel(label + (" (normalised)" if key != "vx" else ""))
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("distance from the weak row [mm]")
+    axes[0].set_ylim(-6, 6)
+    axes[-1].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0].lstrip("# "))
+    parser.add_argument("--cells", type=int, nargs="+", default=[10, 20, 40], help="cells across H")
+    parser.add_argument("--radius", type=float, default=4e-3, help="non-local radius r [m]")
+    parser.add_argument("--weight", default="cubic", choices=["cubic", "constant", "gaussian"])
+    parser.add_argument("--output", type=Path, default=Path("results/shear_band"))
+    args = parser.parse_args()
+    args.output.mkdir(parents=True, exist_ok=True)
+    results = study(args.cells, args.radius, args.weight)
+    text = table(results)
+    print(text)
+    (args.output / "widths.txt").write_text(text + "\n")
+    plain = {k: [{n: (v.tolist() if isinstance(v, np.ndarray) else v) for n, v in r.items()} for r in rs]
+             for k, rs in results.items()}  # fmt: skip
+    (args.output / "shear_band.json").write_text(json.dumps(plain, indent=1))
+    plot(results, args.output / "shear_band.png")
+    print(f"wrote {args.output}/widths.txt, shear_band.json, shear_band.png")
+
+
+if __name__ == "__main__":
+    main()
