@@ -70,7 +70,7 @@ class NonlocalAverage:
 
     def _drop_removed(self, ids: np.ndarray) -> bool:
         """Keep the pairs of the particles still present, when ``ids`` only lost some, in order."""
-        if self._ids is None or len(ids) > len(self._ids):
+        if not 0 < len(ids) <= len(self._ids):
             return False
         old = np.minimum(np.searchsorted(self._ids, ids), len(self._ids) - 1)
         if not (np.array_equal(self._ids[old], ids) and np.all(np.diff(old) > 0)):
@@ -93,9 +93,11 @@ class NonlocalAverage:
         if self.is_local:
             return
         x = np.ascontiguousarray(x)
-        if self._ids is None or not (np.array_equal(ids, self._ids) or self._drop_removed(ids)):
-            self._rebuild(x, ids)
-        elif np.max(np.sum((x - self._x_built) ** 2, axis=1), initial=0.0) > (0.5 * self.skin) ** 2:
+        if (
+            self._ids is None
+            or not (np.array_equal(ids, self._ids) or self._drop_removed(ids))
+            or np.max(np.sum((x - self._x_built) ** 2, axis=1), initial=0.0) > (0.5 * self.skin) ** 2
+        ):
             self._rebuild(x, ids)
         s = np.zeros(len(self._i))
         for c in range(x.shape[1]):

@@ -60,9 +60,7 @@ class DruckerPragerViscoplastic(LinearElastic):
     """Hypo-elastic, Perzyna-viscoplastic Drucker–Prager solid with g = q.
 
     Args:
-        E: Young's modulus [Pa], > 0.
-        nu: Poisson's ratio, in (-1, 0.5).
-        rho: mass density [kg/m^3], > 0.
+        E, nu, rho: elasticity and density, as for :class:`LinearElastic`.
         phi: angle of internal friction [degrees], in (0, 90).
         gamma: viscosity parameter [1/s], > 0.
         N: exponent of the viscosity law, > 0.
