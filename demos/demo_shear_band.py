@@ -33,6 +33,8 @@ import numpy as np
 from dolfinx import mesh
 from mpi4py import MPI
 
+from dolfin_mpm.measure import fwhm, rise_width
+
 H = 0.02  # layer height and width [m]
 SAND = {"E": 1e6, "nu": 0.3, "rho": 1500.0, "phi": 30.0, "gamma": 1e3, "N": 1.0}  # the paper's
 
@@ -130,34 +132,12 @@ def run(cells, radius, weight="cubic", shear=0.05, rate=5.0, p0=1e4, imperfectio
         "vx": vx / V,
         "width_eps_vp": fwhm(y, eps),
         "width_e_vp_bar": fwhm(y, e_bar),
-        "width_velocity": jump_width(y, vx / V),
+        "width_velocity": rise_width(y, vx / V),
         "particles": len(P),
         "steps": n_steps,
         "seconds": elapsed,
         "mean_iterations": fp["iterations"] / fp["steps"] if fp["steps"] else 1.0,
     }
-
-
-def fwhm(y, f):
-    """Full width at half maximum of the peak of ``f(y)`` (linear interpolation) [m]."""
-    k = int(np.argmax(f))
-    half = 0.5 * f[k]
-    lo = k
-    while lo > 0 and f[lo - 1] > half:
-        lo -= 1
-    hi = k
-    while hi < len(f) - 1 and f[hi + 1] > half:
-        hi += 1
-    left = y[lo] if lo == 0 else y[lo - 1] + (half - f[lo - 1]) / (f[lo] - f[lo - 1]) * (y[lo] - y[lo - 1])
-    right = y[hi] if hi == len(f) - 1 else y[hi] + (f[hi] - half) / (f[hi] - f[hi + 1]) * (y[hi + 1] - y[hi])
-    return float(right - left)
-
-
-def jump_width(y, v):
-    """Distance over which a monotone-ish profile ``v(y)`` rises from 10 % to 90 % of its jump [m]."""
-    v = np.maximum.accumulate(v)  # monotone envelope
-    lo, hi = v[0] + 0.1 * (v[-1] - v[0]), v[0] + 0.9 * (v[-1] - v[0])
-    return float(np.interp(hi, v, y) - np.interp(lo, v, y))
 
 
 def study(cells=(10, 20, 40), radius=4e-3, weight="cubic", progress=True, **kwargs):

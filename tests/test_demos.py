@@ -3,6 +3,7 @@
 import importlib.util
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 DEMOS = Path(__file__).parents[1] / "demos"
@@ -40,3 +41,36 @@ def test_shear_band_width_set_by_the_radius_not_the_mesh():
         w = [run[key] for run in nonlocal_]
         assert max(w) / min(w) < 1.2 and min(w) > r
     assert all(run["mean_iterations"] < 5 for run in nonlocal_)
+
+
+def test_silo_quick_discharge(tmp_path):
+    demo = load("demo_silo")
+    r = demo.run(h=0.025, radius=0.02, t_end=0.1, t_settle=0.01, output=tmp_path, progress=False)
+    # Mass: in the silo and in flight + absorbed by the sink = initial, to round-off.
+    assert abs(r["mass_final"] - r["mass_initial"]) < 1e-12 * r["mass_initial"]
+    # The fill was at rest when the outlet opened; then it flows, and keeps flowing.
+    assert r["kinetic_at_opening"] < 1e-6
+    assert r["discharged"][-1] > 1.0 and np.all(np.diff(r["discharged"]) >= 0.0)
+    # e_vp_bar peaks near an outlet edge (x = 5 or 15 cm on the bottom).
+    x, e = r["x"], r["e_vp_bar"]
+    inside = x[:, 1] > 0.0
+    peak = x[inside][np.argmax(e[inside])]
+    assert min(np.hypot(peak[0] - 0.05, peak[1]), np.hypot(peak[0] - 0.15, peak[1])) < 0.05
+    assert r["unconverged"] == 0
+    assert (tmp_path / "particles.xdmf").exists()
+
+
+@pytest.mark.parametrize(
+    "sizes, match",
+    [
+        (dict(outlet=0.25), "outlet must be narrower"),
+        (dict(h=-0.01), "h must be a positive length"),
+        (dict(width=-0.2), "width must be a positive length"),
+        (dict(h=0.05), "cannot resolve the outlet"),
+        (dict(h=0.0075), "must divide"),
+        (dict(wall_friction=95.0), "wall_friction must be in"),
+    ],
+)
+def test_silo_bad_input(sizes, match):
+    with pytest.raises(ValueError, match=match):
+        load("demo_silo").build(**sizes)

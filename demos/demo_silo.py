@@ -1,0 +1,474 @@
+"""# Silo discharge: the paper's example (§4)
+
+A plane silo, 20 cm wide and 30 cm tall, full of the paper's sand, empties through a 10 cm
+outlet in the middle of its bottom. The walls and the bottom are rigid with Coulomb friction
+(the paper does not give the wall friction; the default is a wall friction angle of 20°).
+The background mesh goes on below the outlet, so that the material falls freely; what falls
+below a catch line, or sideways under the bottom plate, leaves through a sink. The mass that
+has passed the outlet plane (in free fall or in the sink) is the discharged mass.
+
+Before the outlet opens the fill is at rest under gravity: geostatic stresses with the
+at-rest ratio K0 = nu / (1 - nu), then a short damped settling phase on the closed outlet.
+Time t = 0 is the opening.
+
+Each run is stored in the results folder (JSON of the numbers, NPZ of the particles at the
+map time), so studies are resumed rather than repeated:
+
+    python demos/demo_silo.py                      # one run, h = 10 mm, r = 5 mm
+    python demos/demo_silo.py --study meshes       # h = 10, 5, 2.5 mm, local and non-local
+    python demos/demo_silo.py --study radius       # r = 0, 2.5, 5, 10 mm on one mesh
+    python demos/demo_silo.py --study weights      # cubic, constant, Gaussian at r = 5 mm
+    python demos/demo_silo.py --study all --report docs/silo.md
+"""
+
+import argparse
+import json
+import math
+import time
+from pathlib import Path
+
+import dolfin_mpm as dm  # import first: it loads DOLFINx's libraries
+
+# isort: split
+import numpy as np
+from dolfinx import mesh
+from mpi4py import MPI
+
+from dolfin_mpm.measure import rise_width
+
+SAND = {"E": 1e6, "nu": 0.3, "rho": 1500.0, "phi": 30.0, "gamma": 1e3, "N": 1.0}  # the paper's
+G = 9.81
+
+
+def check_geometry(width: float, height: float, outlet: float, h: float) -> None:
+    """Raise ``ValueError`` naming the bad size before any work starts."""
+    for name, value in (("width", width), ("height", height), ("outlet", outlet), ("h", h)):
+        if not (math.isfinite(value) and value > 0.0):
+            raise ValueError(f"{name} must be a positive length [m], got {value!r}")
+    if outlet >= width:
+        raise ValueError(f"outlet must be narrower than the silo (< width = {width} m), got {outlet}")
+    if outlet < 4 * h - 1e-12:
+        raise ValueError(
+            f"h = {h} m cannot resolve the outlet: need at least 4 cells across it (h <= {outlet / 4} m)"
+        )
+    for name, length in (("width", width), ("height", height), ("(width - outlet) / 2", 0.5 * (width - outlet))):
+        if abs(length / h - round(length / h)) > 1e-6:
+            raise ValueError(f"h = {h} m must divide the {name} = {length} m into whole cells")
+
+
+def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, height=0.3, outlet=0.1, ppc=4):
+    """The silo on a mesh of ``h`` [m]: solver, sinks and the outlet's gate, before settling.
+
+    Args:
+        h: cell size [m] (squares of two triangles); must divide the silo's sizes.
+        radius: non-local radius r [m]; 0 for the local (viscoplastic) model.
+        weight: the averaging weight.
+        wall_friction: wall and bottom friction angle [degrees], in [0, 90).
+        width, height, outlet: silo sizes [m]; the outlet is centred in the bottom.
+        ppc: particles per triangle.
+
+    Returns:
+        ``(solver, gate)``; the gate is a boundary condition in ``solver.bcs``.
+
+    """
+    check_geometry(width, height, outlet, h)
+    if not 0.0 <= wall_friction < 90.0:
+        raise ValueError(f"wall_friction must be in [0, 90) degrees, got {wall_friction}")
+    comm = MPI.COMM_WORLD
+    x0, x1 = 0.5 * (width - outlet), 0.5 * (width + outlet)  # outlet edges
+    drop = 0.5 * outlet  # free fall below the outlet down to the catch line
+    rows_below = math.ceil(drop / h) + 1
+    grid = dm.Grid(
+        mesh.create_rectangle(
+            comm,
+            [np.array([0.0, -rows_below * h]), np.array([width, height])],
+            [round(width / h), rows_below + round(height / h)],
+            mesh.CellType.triangle,
+        )
+    )
+    sand = dm.DruckerPragerViscoplastic(**SAND)
+    P = dm.seed(grid, sand, ppc=ppc, where=lambda x: x[1] > 0.0)
+    # Geostatic stress: sigma_yy = -rho g depth, sigma_xx = sigma_zz = K0 sigma_yy.
+    K0 = SAND["nu"] / (1.0 - SAND["nu"])
+    sigma_v = -SAND["rho"] * G * (height - P.x[:, 1])
+    P.sigma[:] = 0.0
+    P.sigma[:, 0, 0] = P.sigma[:, 2, 2] = K0 * sigma_v
+    P.sigma[:, 1, 1] = sigma_v
+
+    mu = math.tan(math.radians(wall_friction))
+    tol = 1e-9
+    at = lambda a, b: np.abs(a - b) < tol  # noqa: E731
+    walls = [
+        dm.FrictionalWall(grid.nodes_where(lambda x: at(x[0], 0.0) & (x[1] > -tol)), normal=(-1, 0), mu=mu),
+        dm.FrictionalWall(grid.nodes_where(lambda x: at(x[0], width) & (x[1] > -tol)), normal=(1, 0), mu=mu),
+        dm.FrictionalWall(
+            grid.nodes_where(lambda x: at(x[1], 0.0) & ((x[0] < x0 + tol) | (x[0] > x1 - tol))), normal=(0, -1), mu=mu
+        ),
+    ]
+    gate = dm.FrictionalWall(
+        grid.nodes_where(lambda x: at(x[1], 0.0) & (x[0] > x0 + tol) & (x[0] < x1 - tol)), normal=(0, -1), mu=mu
+    )
+    sink = dm.Sink("discharged", region=lambda x: (x[1] < -drop) | ((x[1] < 0.0) & ((x[0] < x0) | (x[0] > x1))))
+    averaging = dm.NonlocalAverage(radius, weight) if radius > 0.0 else None
+    solver = dm.Solver(grid, P, sand, bcs=[*walls, gate], gravity=(0.0, -G), sinks=[sink], averaging=averaging)
+    return solver, gate
+
+
+def discharged_mass(solver) -> float:
+    """Mass that has passed the outlet plane y = 0: in free fall or in the sink [kg/m]."""
+    P = solver.particles
+    below = float(P.mass[P.x[:, 1] < 0.0].sum())
+    return solver.comm.allreduce(below, MPI.SUM) + solver.sinks["discharged"].mass
+
+
+class Monitor:
+    """What a run records at each call: the discharged mass; every ``xdmf_every``-th call the
+    XDMF output; from ``t_profile`` on, the profiles of e_vp_bar and v_y across the silo at
+    the height ``y_c`` (a strip of one cell, bins of half a cell), summed for time averages.
+    """
+
+    def __init__(self, output, h, width, y_c, t_profile, xdmf_every=5):
+        self.output, self.xdmf_every, self.t, self.mass = output, xdmf_every, [], []
+        self.h, self.y_c, self.t_profile = h, y_c, t_profile
+        self.edges = np.linspace(0.0, width, round(2 * width / h) + 1)
+        self.sums = np.zeros((3, len(self.edges) - 1))  # count, e_vp_bar, v_y
+
+    def write(self, solver):
+        if self.t and solver.time == self.t[-1]:
+            return
+        if self.output is not None and len(self.t) % self.xdmf_every == 0:
+            self.output.write(solver)
+        self.t.append(solver.time)
+        self.mass.append(discharged_mass(solver))
+        if solver.time >= self.t_profile - 1e-12:
+            P = solver.particles
+            strip = np.abs(P.x[:, 1] - self.y_c) < 0.5 * self.h
+            bins = np.clip(np.digitize(P.x[strip, 0], self.edges) - 1, 0, self.sums.shape[1] - 1)
+            for k, values in enumerate((None, P.state["eps_vp_rate_nonlocal"][strip], P.v[strip, 1])):
+                self.sums[k] += np.bincount(bins, values, minlength=self.sums.shape[1])
+
+    def profiles(self, comm):
+        """Bin centres [m] and the time-averaged e_vp_bar [1/s] and v_y [m/s] in each bin."""
+        count, e, v = comm.allreduce(self.sums, MPI.SUM)
+        count = np.maximum(count, 1.0)
+        return 0.5 * (self.edges[1:] + self.edges[:-1]), e / count, v / count
+
+
+def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, t_end=0.25, t_settle=0.02,
+        output=None, interval=0.005, progress=True, **sizes):  # fmt: skip
+    """Settle the fill, open the outlet at t = 0 and discharge until ``t_end`` [s].
+
+    Args:
+        h, radius, weight, wall_friction, sizes: as for :func:`build`.
+        t_end: end of the discharge [s].
+        t_settle: length of the damped settling phase before the opening [s].
+        output: folder for the XDMF series (particles and grid), or ``None``.
+        interval: time between records of the discharged mass [s]; XDMF every fifth.
+
+    Returns:
+        dict: the discharged mass against time, the flow rate, the particles at ``t_end``
+        (positions, non-local rate e_vp_bar), the time-averaged profiles across the silo at
+        the height ``y_c`` over the last fifth of the run, and the run's statistics.
+
+    """
+    solver, gate = build(h, radius, weight, wall_friction, **sizes)
+    m0 = solver.total_mass()
+    t0 = time.perf_counter()
+    # ## Settling on the closed outlet (damped), then the opening
+    solver.time = -t_settle
+    solver.damping = 0.2
+    solver.run(0.0, progress=progress)
+    solver.damping = 0.0
+    solver.bcs = [bc for bc in solver.bcs if bc is not gate]
+    kinetic_at_opening = solver.energies()["kinetic"]
+    # ## Discharge
+    xdmf = dm.Output(output, solver.comm) if output is not None else None
+    width = sizes.get("width", 0.2)
+    y_c = 0.5 * sizes.get("outlet", 0.1)
+    monitor = Monitor(xdmf, h, width, y_c, t_profile=t_end - 0.2 * t_end)
+    try:
+        solver.run(t_end, output=monitor, output_interval=interval, progress=progress)
+        if xdmf is not None:
+            xdmf.write(solver)  # the last state, if the fifth-record cadence missed it
+    finally:
+        if xdmf is not None:
+            xdmf.close()
+    elapsed = time.perf_counter() - t0
+    P = solver.particles
+    t, mass = np.array(monitor.t), np.array(monitor.mass)
+    x_c, e_c, v_c = monitor.profiles(solver.comm)
+    fp = solver.fixed_point
+    return {
+        "h": h,
+        "radius": radius,
+        "weight": weight,
+        "wall_friction": wall_friction,
+        "t": t,
+        "discharged": mass,
+        "flow_rate": flow_rate(t, mass),
+        "mass_initial": m0,
+        "mass_final": solver.total_mass() + solver.sinks["discharged"].mass,
+        "kinetic_at_opening": kinetic_at_opening,
+        "profile_x": x_c,
+        "profile_e_vp_bar": e_c,
+        "profile_v_y": v_c,
+        "y_c": y_c,
+        "x": P.x[:, :2].copy(),  # the particles at t_end
+        "e_vp_bar": P.state["eps_vp_rate_nonlocal"].copy(),
+        "e_vp_bar_max": float(P.state["eps_vp_rate_nonlocal"][P.x[:, 1] > 0.0].max()),
+        "particles": solver.num_particles(),
+        "steps": solver.step_count,
+        "seconds": elapsed,
+        "mean_iterations": fp["iterations"] / fp["steps"] if fp["steps"] else 1.0,
+        "max_iterations": fp["max_iterations"],
+        "unconverged": fp["unconverged"],
+    }
+
+
+def band_widths(result) -> dict:
+    """Widths [m] across the left half of the silo at the height ``y_c``, from the profiles.
+
+    ``band``: the shear band at the edge of the stagnant zone, as the distance over which
+    e_vp_bar rises from 10 % to 90 % between the wall and its peak near the outlet edge;
+    ``channel``: the same rise of the downward velocity from the wall to the axis.
+    """
+    x, e, v = result["profile_x"], result["profile_e_vp_bar"], result["profile_v_y"]
+    left = x < 0.5 * x[-1] + 0.5 * (x[1] - x[0])
+    peak = int(np.argmax(e[left]))
+    return {"band": rise_width(x[: peak + 1], e[: peak + 1]), "channel": rise_width(x[left], -v[left])}
+
+
+def flow_rate(t, mass, t_from=0.1):
+    """Steady mass flow rate [kg/s per metre]: slope of the discharged mass after ``t_from``."""
+    late = t >= t_from
+    if late.sum() < 3:
+        return float("nan")
+    return float(np.polyfit(t[late], mass[late], 1)[0])
+
+
+def beverloo(outlet=0.1, rho=SAND["rho"], C=(0.58, 1.5)):
+    """2D Beverloo law W = C rho sqrt(g) D^(3/2) (continuum, d -> 0) [kg/s per metre]."""
+    return tuple(c * rho * math.sqrt(G) * outlet**1.5 for c in C)
+
+
+# ## Studies: each run is stored once and reused
+
+H_STUDY = 0.005  # the mesh of the radius and weight studies [m]
+STUDIES = {
+    "meshes": [dict(h=h, radius=r) for r in (0.0, 5e-3) for h in (0.01, 0.005, 0.0025)],
+    "radius": [dict(h=H_STUDY, radius=r) for r in (0.0, 2.5e-3, 5e-3, 10e-3)],
+    "weights": [dict(h=H_STUDY, radius=5e-3, weight=w) for w in ("cubic", "constant", "gaussian")],
+    "friction": [dict(h=0.01, wall_friction=a) for a in (0.0, 10.0, 20.0, 30.0)],
+}
+ARRAYS = ("t", "discharged", "x", "e_vp_bar", "profile_x", "profile_e_vp_bar", "profile_v_y")
+
+
+def run_key(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0) -> str:
+    return f"h{1e3 * h:g}mm_r{1e3 * radius:g}mm_{weight}_wall{wall_friction:g}"
+
+
+def cached_run(folder: Path, xdmf=False, progress=True, **params) -> dict:
+    """The result of :func:`run` with ``params``, from ``folder/runs`` or computed and stored there.
+
+    The numbers go to ``<key>.json``, the arrays to ``<key>.npz``, each written under a
+    temporary name and then renamed, so an interrupted study never leaves half a result.
+    """
+    runs = Path(folder) / "runs"
+    key = run_key(**params)
+    path = runs / f"{key}.json"
+    if path.exists():
+        result = json.loads(path.read_text())
+        with np.load(runs / f"{key}.npz") as arrays:
+            result.update({name: arrays[name] for name in ARRAYS})
+        return result
+    runs.mkdir(parents=True, exist_ok=True)
+    result = run(**params, output=runs / key if xdmf else None, progress=progress)
+    tmp = runs / f"{key}.tmp.npz"
+    np.savez_compressed(tmp, **{name: result[name] for name in ARRAYS})
+    tmp.rename(runs / f"{key}.npz")
+    tmp = runs / f"{key}.json.tmp"
+    tmp.write_text(json.dumps({k: v for k, v in result.items() if k not in ARRAYS}, indent=1))
+    tmp.rename(path)
+    return result
+
+
+# ## Figures and the report
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def plot_maps(results, path: Path, width=0.2, outlet=0.1) -> None:
+    """The paper's Fig. 1: e_vp_bar over the particles at t_end, one panel per run."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, len(results), figsize=(3.4 * len(results) + 0.8, 5.2), sharey=True)
+    axes = np.atleast_1d(axes)
+    vmax = max(np.percentile(r["e_vp_bar"][r["x"][:, 1] > 0.0], 99.5) for r in results)
+    x0, x1 = 0.5 * (width - outlet), 0.5 * (width + outlet)
+    for ax, r in zip(axes, results):
+        x = 100 * r["x"]
+        dot = (0.35 * r["h"] * 100 * 72 * 3.0 / (100 * width)) ** 2  # about the particle spacing
+        sc = ax.scatter(x[:, 0], x[:, 1], c=r["e_vp_bar"], s=dot, cmap="jet", vmin=0.0, vmax=vmax, linewidths=0)
+        ax.plot([0, 0, 100 * x0], [30, 0, 0], "k-", [100 * x1, 100 * width, 100 * width], [0, 0, 30], "k-", lw=1.5)
+        ax.set_title(f"h = {1e3 * r['h']:g} mm, r = {1e3 * r['radius']:g} mm", fontsize=10)
+        ax.set_xlabel("x [cm]")
+        ax.set_aspect("equal")
+        ax.set_xlim(-1, 100 * width + 1)
+        ax.set_ylim(-5, 30.5)
+    axes[0].set_ylabel("y [cm]")
+    fig.colorbar(sc, ax=axes.tolist(), shrink=0.8, label="e_vp_bar [1/s]")
+    fig.suptitle(f"non-local equivalent viscoplastic strain rate at t = {results[0]['t'][-1]:.2f} s")
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+
+
+def plot_discharge(results, path: Path, outlet=0.1) -> None:
+    """Discharged mass against time, with the Beverloo band."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6, 4.2))
+    t = np.linspace(0.0, max(r["t"][-1] for r in results), 50)
+    lo, hi = beverloo(outlet)
+    ax.fill_between(t, lo * t, hi * t, color="0.85", label=f"Beverloo, C = 0.58-1.5 ({lo:.0f}-{hi:.0f} kg/s/m)")
+    for r in results:
+        label = f"h = {1e3 * r['h']:g} mm, r = {1e3 * r['radius']:g} mm: {r['flow_rate']:.0f} kg/s/m"
+        ax.plot(r["t"], r["discharged"], label=label)
+    ax.set_xlabel("time since the opening [s]")
+    ax.set_ylabel("discharged mass [kg/m]")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+
+
+def plot_radius(results, path: Path) -> None:
+    """Flow rate against the non-local radius."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(5, 3.6))
+    ax.plot([1e3 * r["radius"] for r in results], [r["flow_rate"] for r in results], "o-")
+    ax.set_xlabel("non-local radius r [mm] (0: local)")
+    ax.set_ylabel("flow rate [kg/s/m]")
+    ax.set_title(f"h = {1e3 * results[0]['h']:g} mm", fontsize=10)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+
+
+def plot_profiles(results, path: Path) -> None:
+    """Time-averaged e_vp_bar and downward velocity across the silo at the height y_c."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharex=True)
+    for r in results:
+        style = "-" if r["radius"] > 0 else "--"
+        label = f"h = {1e3 * r['h']:g} mm, r = {1e3 * r['radius']:g} mm"
+        axes[0].plot(100 * r["profile_x"], r["profile_e_vp_bar"], style, label=label)
+        axes[1].plot(100 * r["profile_x"], -r["profile_v_y"], style, label=label)
+    axes[0].set_ylabel("e_vp_bar [1/s]")
+    axes[1].set_ylabel("downward velocity [m/s]")
+    for ax in axes:
+        ax.set_xlabel(f"x [cm] at y = {100 * results[0]['y_c']:g} cm")
+        ax.grid(alpha=0.3)
+    axes[1].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+
+
+def _spread(values) -> str:
+    return f"{100 * (max(values) / min(values) - 1):.0f} %"
+
+
+def report(folder: Path, path: Path) -> str:
+    """Tables and figures of the stored studies (those present) as Markdown in ``path``."""
+    images = path.parent / "images"
+    images.mkdir(parents=True, exist_ok=True)
+    have = lambda p: (Path(folder) / "runs" / f"{run_key(**p)}.json").exists()  # noqa: E731
+    studies = {name: [cached_run(folder, **p) for p in todo] for name, todo in STUDIES.items() if all(map(have, todo))}
+    lo, hi = beverloo()
+    out = [
+        "# Silo discharge",
+        "",
+        "Generated by `python demos/demo_silo.py --study all --report docs/silo.md`; each run is "
+        "stored in `results/silo/runs` and reused.",
+        "",
+    ]
+    row = lambda r: (  # noqa: E731
+        f"| {1e3 * r['h']:g} | {1e3 * r['radius']:g} | {r['weight']} | {r['wall_friction']:g} "
+        f"| {r['flow_rate']:.1f} | {r['e_vp_bar_max']:.1f} | {1e3 * band_widths(r)['band']:.1f} "
+        f"| {1e3 * band_widths(r)['channel']:.1f} | {r['particles']} | {r['steps']} | {r['mean_iterations']:.2f} "
+        f"| {r['seconds']:.0f} |"
+    )
+    header = [
+        "| h [mm] | r [mm] | weight | wall friction [°] | flow rate [kg/s/m] | max e_vp_bar [1/s] "
+        "| band [mm] | channel [mm] | particles at end | steps | iterations/step | time [s] |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for name, runs in studies.items():
+        out += [f"## Study: {name}", "", *header, *(row(r) for r in runs), ""]
+        if name == "meshes":
+            nonlocal_ = [r for r in runs if r["radius"] > 0]
+            local = [r for r in runs if r["radius"] == 0]
+            plot_maps(nonlocal_, images / "silo_maps.png")
+            plot_discharge(runs, images / "silo_discharge.png")
+            plot_profiles(runs, images / "silo_profiles.png")
+            for label, rs in (("non-local", nonlocal_), ("local", local)):
+                out.append(
+                    f"- {label}: band width spread across the meshes {_spread([band_widths(r)['band'] for r in rs])}, "
+                    f"flow rate spread {_spread([r['flow_rate'] for r in rs])}"
+                )
+            out += [
+                f"- Beverloo (2D, d -> 0, C = 0.58-1.5): {lo:.0f}-{hi:.0f} kg/s/m.",
+                "",
+                "![e_vp_bar maps](images/silo_maps.png)",
+                "",
+                "![discharge](images/silo_discharge.png)",
+                "",
+                "![profiles](images/silo_profiles.png)",
+                "",
+            ]
+        if name == "radius":
+            plot_radius(runs, images / "silo_radius.png")
+            out += ["![flow rate against r](images/silo_radius.png)", ""]
+    text = "\n".join(out)
+    path.write_text(text)
+    return text
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0].lstrip("# "))
+    parser.add_argument("--study", choices=[*STUDIES, "all"], help="run a study instead of one run")
+    parser.add_argument("--h", type=float, default=0.01, help="cell size [m]")
+    parser.add_argument("--radius", type=float, default=5e-3, help="non-local radius r [m]")
+    parser.add_argument("--weight", default="cubic", choices=["cubic", "constant", "gaussian"])
+    parser.add_argument("--wall-friction", type=float, default=20.0, help="wall friction angle [deg]")
+    parser.add_argument("--output", type=Path, default=Path("results/silo"))
+    parser.add_argument("--report", type=Path, help="write the Markdown report of the stored studies here")
+    args = parser.parse_args()
+    if args.study is None and args.report is None:
+        todo = [dict(h=args.h, radius=args.radius, weight=args.weight, wall_friction=args.wall_friction)]
+    elif args.study is None:
+        todo = []  # the report of what is stored
+    else:
+        todo = [p for name in (STUDIES if args.study == "all" else [args.study]) for p in STUDIES[name]]
+    lo, hi = beverloo()
+    for params in todo:
+        r = cached_run(args.output, xdmf=True, **params)
+        print(
+            f"{run_key(**params)}: flow rate {r['flow_rate']:.1f} kg/s/m (Beverloo {lo:.0f}-{hi:.0f}), "
+            f"max e_vp_bar {r['e_vp_bar_max']:.1f} 1/s, {r['particles']} particles, {r['steps']} steps, "
+            f"{r['seconds']:.0f} s, {r['mean_iterations']:.2f} iterations per step"
+        )
+    if args.report is not None:
+        report(args.output, args.report)
+        print(f"wrote {args.report}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,34 @@
+"""Measurements on sampled profiles: widths of peaks and of jumps (shear bands)."""
+
+import numpy as np
+
+__all__ = ["fwhm", "rise_width"]
+
+
+def fwhm(y: np.ndarray, f: np.ndarray) -> float:
+    """Full width at half maximum of the highest peak of ``f(y)`` (linear interpolation).
+
+    ``y`` increasing, ``f`` sampled on it; the result has the unit of ``y``.
+    """
+    k = int(np.argmax(f))
+    half = 0.5 * f[k]
+    lo = k
+    while lo > 0 and f[lo - 1] > half:
+        lo -= 1
+    hi = k
+    while hi < len(f) - 1 and f[hi + 1] > half:
+        hi += 1
+    left = y[lo] if lo == 0 else y[lo - 1] + (half - f[lo - 1]) / (f[lo] - f[lo - 1]) * (y[lo] - y[lo - 1])
+    right = y[hi] if hi == len(f) - 1 else y[hi] + (f[hi] - half) / (f[hi] - f[hi + 1]) * (y[hi + 1] - y[hi])
+    return float(right - left)
+
+
+def rise_width(y: np.ndarray, f: np.ndarray) -> float:
+    """Distance over which ``f(y)`` rises from 10 % to 90 % of its jump ``f[-1] - f[0]``.
+
+    The profile is replaced by its running maximum first, so noise cannot fold it back;
+    the result has the unit of ``y``.
+    """
+    f = np.maximum.accumulate(f)
+    lo, hi = f[0] + 0.1 * (f[-1] - f[0]), f[0] + 0.9 * (f[-1] - f[0])
+    return float(np.interp(hi, f, y) - np.interp(lo, f, y))
