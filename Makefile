@@ -19,7 +19,7 @@ setup: $(VENV)/.ready
 setup-pypi: $(VENV_PYPI)/.ready
 
 demo: $(VENV)/.ready
-	$(PY) demos/demo_elastic_bar.py
+	$(PY) demos/demo_silo.py
 
 test: $(VENV)/.ready
 	$(PY) -m pytest -q $(PYTEST_ARGS)

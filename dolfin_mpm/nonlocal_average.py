@@ -22,6 +22,7 @@ from dolfin_mpm.materials.base import check_range
 
 __all__ = ["WEIGHTS", "NonlocalAverage"]
 
+
 def _cubic(t: np.ndarray, out: np.ndarray) -> np.ndarray:
     np.multiply(t, 2.0, out=out)
     out -= 3.0

@@ -1,0 +1,23 @@
+"""Profile measurements against closed forms."""
+
+import numpy as np
+
+from dolfin_mpm.measure import fwhm, rise_width
+
+
+def test_fwhm_of_a_gaussian():
+    y = np.linspace(-5.0, 5.0, 2001)
+    sigma = 0.7
+    g = np.exp(-0.5 * ((y - 1.0) / sigma) ** 2)
+    assert abs(fwhm(y, g) - 2.0 * sigma * np.sqrt(2.0 * np.log(2.0))) < 1e-4
+    # On a background of 0.3 the half maximum is 0.65, where g = 0.35.
+    assert abs(fwhm(y, 0.3 + g) - 2.0 * sigma * np.sqrt(2.0 * np.log(1.0 / 0.35))) < 1e-4
+
+
+def test_rise_width_of_a_ramp_with_noise():
+    y = np.linspace(0.0, 1.0, 1001)
+    f = np.clip((y - 0.2) / 0.5, 0.0, 1.0)  # rises over 0.2 .. 0.7
+    assert abs(rise_width(y, f) - 0.8 * 0.5) < 1e-9
+    dip = f.copy()
+    dip[600] -= 0.3  # a dip on the way up does not fold the profile back
+    assert abs(rise_width(y, dip) - 0.8 * 0.5) < 1e-9
