@@ -79,19 +79,21 @@ def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, he
     if not 0.0 <= wall_friction < 90.0:
         raise ValueError(f"wall_friction must be in [0, 90) degrees, got {wall_friction}")
     comm = MPI.COMM_WORLD
+    if comm.size > 1:
+        raise RuntimeError("this demo records and stores particles on one rank; run it serially")
     x0, x1 = 0.5 * (width - outlet), 0.5 * (width + outlet)  # outlet edges
     drop = 0.5 * outlet  # free fall below the outlet down to the catch line
     rows_below = math.ceil(drop / h) + 1
     grid = dm.Grid(
         mesh.create_rectangle(
             comm,
-            [np.array([0.0, -rows_below * h]), np.array([width, height])],
-            [round(width / h), rows_below + round(height / h)],
+            [np.array([0.0, -rows_below * h]), np.array([width, height + h])],  # a spare row on top
+            [round(width / h), rows_below + round(height / h) + 1],
             mesh.CellType.triangle,
         )
     )
     sand = dm.DruckerPragerViscoplastic(**SAND)
-    P = dm.seed(grid, sand, ppc=ppc, where=lambda x: x[1] > 0.0)
+    P = dm.seed(grid, sand, ppc=ppc, where=lambda x: (x[1] > 0.0) & (x[1] < height))
     # Geostatic stress: sigma_yy = -rho g depth, sigma_xx = sigma_zz = K0 sigma_yy.
     K0 = SAND["nu"] / (1.0 - SAND["nu"])
     sigma_v = -SAND["rho"] * G * (height - P.x[:, 1])
@@ -119,7 +121,7 @@ def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, he
     sink = dm.Sink(
         "discharged", region=lambda x: (x[1] < -drop) | ((x[1] < 0.0) & ((x[0] < x0) | (x[0] > x1)))
     )
-    averaging = dm.NonlocalAverage(radius, weight) if radius > 0.0 else None
+    averaging = dm.NonlocalAverage(radius, weight)  # checks r >= 0; r = 0 is the local model
     solver = dm.Solver(
         grid, P, sand, bcs=[*walls, gate], gravity=(0.0, -G), sinks=[sink], averaging=averaging
     )
@@ -162,16 +164,17 @@ class Monitor:
     def profiles(self, comm):
         """Bin centres [m] and the time-averaged e_vp_bar [1/s] and v_y [m/s] in each bin."""
         count, e, v = comm.allreduce(self.sums, MPI.SUM)
-        count = np.maximum(count, 1.0)
-        return 0.5 * (self.edges[1:] + self.edges[:-1]), e / count, v / count
+        seen = count > 0  # bins no particle visited are left out
+        x = 0.5 * (self.edges[1:] + self.edges[:-1])
+        return x[seen], e[seen] / count[seen], v[seen] / count[seen]
 
 
-def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, t_end=0.25, t_settle=0.02,
-        output=None, interval=0.005, progress=True, **sizes):  # fmt: skip
+def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, height=0.3, outlet=0.1,
+        ppc=4, t_end=0.25, t_settle=0.02, output=None, interval=0.005, progress=True):  # fmt: skip
     """Settle the fill, open the outlet at t = 0 and discharge until ``t_end`` [s].
 
     Args:
-        h, radius, weight, wall_friction, sizes: as for :func:`build`.
+        h, radius, weight, wall_friction, width, height, outlet, ppc: as for :func:`build`.
         t_end: end of the discharge [s].
         t_settle: length of the damped settling phase before the opening [s].
         output: folder for the XDMF series (particles and grid), or ``None``.
@@ -183,11 +186,16 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, t_end=0.25, t_s
         the height ``y_c`` over the last fifth of the run, and the run's statistics.
 
     """
-    solver, gate = build(h, radius, weight, wall_friction, **sizes)
+    for name, value in (("t_end", t_end), ("interval", interval)):
+        if not value > 0.0:
+            raise ValueError(f"{name} must be > 0 s, got {value!r}")
+    if not t_settle >= 0.0:
+        raise ValueError(f"t_settle must be >= 0 s, got {t_settle!r}")
+    solver, gate = build(h, radius, weight, wall_friction, width, height, outlet, ppc)
     m0 = solver.total_mass()
     t0 = time.perf_counter()
     # ## Settling on the closed outlet (damped), then the opening
-    solver.time = -t_settle
+    solver.time = -math.ceil(t_settle / solver.dt) * solver.dt  # whole steps: the opening is at t = 0
     solver.damping = 0.2
     solver.run(0.0, progress=progress)
     solver.damping = 0.0
@@ -195,8 +203,7 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, t_end=0.25, t_s
     kinetic_at_opening = solver.energies()["kinetic"]
     # ## Discharge
     xdmf = dm.Output(output, solver.comm) if output is not None else None
-    width = sizes.get("width", 0.2)
-    y_c = 0.5 * sizes.get("outlet", 0.1)
+    y_c = 0.5 * outlet
     monitor = Monitor(xdmf, h, width, y_c, t_profile=t_end - 0.2 * t_end)
     try:
         solver.run(t_end, output=monitor, output_interval=interval, progress=progress)
@@ -237,7 +244,7 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, t_end=0.25, t_s
     }
 
 
-def band_widths(result) -> dict:
+def band_widths(result, width=0.2) -> dict:
     """Widths [m] across the left half of the silo at the height ``y_c``, from the profiles.
 
     ``band``: the shear band at the edge of the stagnant zone, as the distance over which
@@ -245,9 +252,13 @@ def band_widths(result) -> dict:
     ``channel``: the same rise of the downward velocity from the wall to the axis.
     """
     x, e, v = result["profile_x"], result["profile_e_vp_bar"], result["profile_v_y"]
-    left = x < 0.5 * x[-1] + 0.5 * (x[1] - x[0])
+    left = x < 0.5 * width
     peak = int(np.argmax(e[left]))
-    return {"band": rise_width(x[: peak + 1], e[: peak + 1]), "channel": rise_width(x[left], -v[left])}
+    start = int(np.argmin(e[: peak + 1]))  # the stagnant zone's lowest rate, not the wall's
+    return {
+        "band": rise_width(x[start : peak + 1], e[start : peak + 1]),
+        "channel": rise_width(x[left], -v[left]),
+    }
 
 
 def flow_rate(t, mass, t_from=0.1):
@@ -276,6 +287,7 @@ ARRAYS = ("t", "discharged", "x", "e_vp_bar", "profile_x", "profile_e_vp_bar", "
 
 
 def run_key(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0) -> str:
+    """Name of a stored run: the study parameters; every other setting is :func:`run`'s default."""
     return f"h{1e3 * h:g}mm_r{1e3 * radius:g}mm_{weight}_wall{wall_friction:g}"
 
 

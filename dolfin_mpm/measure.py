@@ -24,11 +24,15 @@ def fwhm(y: np.ndarray, f: np.ndarray) -> float:
 
 
 def rise_width(y: np.ndarray, f: np.ndarray) -> float:
-    """Distance over which ``f(y)`` rises from 10 % to 90 % of its jump ``f[-1] - f[0]``.
+    """Distance over which ``f(y)`` rises from 10 % to 90 % of the way from ``f[0]`` to its maximum.
 
     The profile is replaced by its running maximum first, so noise cannot fold it back;
     the result has the unit of ``y``.
     """
+    if len(y) != len(f) or len(y) < 2 or np.any(np.diff(y) <= 0.0):
+        raise ValueError("y must increase and have the length of f (at least 2 points)")
     f = np.maximum.accumulate(f)
+    if not f[-1] > f[0]:
+        raise ValueError("f does not rise: no width to measure")
     lo, hi = f[0] + 0.1 * (f[-1] - f[0]), f[0] + 0.9 * (f[-1] - f[0])
     return float(np.interp(hi, f, y) - np.interp(lo, f, y))

@@ -24,11 +24,10 @@ __all__ = ["WEIGHTS", "NonlocalAverage"]
 
 
 def _cubic(t: np.ndarray, out: np.ndarray) -> np.ndarray:
+    # (1 - t)^2 (1 + 2t) = 1 + t^2 (2t - 3), without the cancellation near t = 1
     np.multiply(t, 2.0, out=out)
-    out -= 3.0
-    out *= t
-    out *= t
     out += 1.0
+    out *= np.square(1.0 - t)
     return out
 
 
@@ -80,7 +79,9 @@ class NonlocalAverage:
 
     def _rebuild(self, x: np.ndarray, ids: np.ndarray) -> None:
         pairs = cKDTree(x).query_pairs(self.radius + self.skin, output_type="ndarray")
-        order = np.argsort(pairs[:, 0].astype(np.int32), kind="stable")  # grouped by row: CSR order
+        # Grouped by row, as CSR needs; columns stay unsorted within a row, and as nothing
+        # sorts U, its data keeps the order of the pairs.
+        order = np.argsort(pairs[:, 0].astype(np.int32), kind="stable")
         i, j = np.ascontiguousarray(pairs.take(order, axis=0).T)
         offset = np.array([xc.take(i) - xc.take(j) for xc in np.ascontiguousarray(x.T)], dtype=np.float32)
         self._set_pairs(i, j, offset, x.shape[0])
