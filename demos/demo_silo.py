@@ -331,6 +331,12 @@ def _pyplot():
     return plt
 
 
+def _save(fig, path: Path) -> None:
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    _pyplot().close(fig)
+
+
 def plot_maps(results, path: Path, width=0.2, outlet=0.1) -> None:
     """The paper's Fig. 1: e_vp_bar over the particles at t_end, one panel per run."""
     plt = _pyplot()
@@ -375,9 +381,7 @@ def plot_discharge(results, path: Path, outlet=0.1) -> None:
     ax.set_ylabel("discharged mass [kg/m]")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    _save(fig, path)
 
 
 def plot_radius(results, path: Path) -> None:
@@ -389,9 +393,7 @@ def plot_radius(results, path: Path) -> None:
     ax.set_ylabel("flow rate [kg/s/m]")
     ax.set_title(f"h = {1e3 * results[0]['h']:g} mm", fontsize=10)
     ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    _save(fig, path)
 
 
 def plot_profiles(results, path: Path) -> None:
@@ -409,9 +411,7 @@ def plot_profiles(results, path: Path) -> None:
         ax.set_xlabel(f"x [cm] at y = {100 * results[0]['y_c']:g} cm")
         ax.grid(alpha=0.3)
     axes[1].legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    _save(fig, path)
 
 
 def _spread(values) -> str:
