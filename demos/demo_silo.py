@@ -419,15 +419,15 @@ def _spread(values) -> str:
 
 
 def report(folder: Path, path: Path) -> str:
-    """Tables and figures of the stored studies (those present) as Markdown in ``path``."""
+    """Tables and figures of the stored runs of each study as Markdown in ``path``.
+
+    Runs not stored yet are listed as missing; nothing is computed here.
+    """
     images = path.parent / "images"
     images.mkdir(parents=True, exist_ok=True)
     have = lambda p: (Path(folder) / "runs" / f"{run_key(**p)}.json").exists()  # noqa: E731
-    studies = {
-        name: [cached_run(folder, **p) for p in todo]
-        for name, todo in STUDIES.items()
-        if all(map(have, todo))
-    }
+    studies = {name: [cached_run(folder, **p) for p in todo if have(p)] for name, todo in STUDIES.items()}
+    missing = {name: [run_key(**p) for p in todo if not have(p)] for name, todo in STUDIES.items()}
     lo, hi = beverloo()
     out = [
         "# Silo discharge",
@@ -466,6 +466,10 @@ def report(folder: Path, path: Path) -> str:
     ]
     for name, runs in studies.items():
         out += [f"## Study: {name}", "", *header, *(row(r) for r in runs), ""]
+        if missing[name]:
+            out += ["Not run yet: " + ", ".join(f"`{key}`" for key in missing[name]) + ".", ""]
+        if len(runs) < 2:
+            continue
         if name == "meshes":
             nonlocal_ = [r for r in runs if r["radius"] > 0]
             local = [r for r in runs if r["radius"] == 0]
@@ -479,6 +483,9 @@ def report(folder: Path, path: Path) -> str:
                     f"flow rate {_spread([r['flow_rate'] for r in rs])}"
                 )
             out += [
+                "- The band column measures the largest e_vp_bar peak at mid-height: where no band "
+                "forms there (the non-local runs so far), it is the width of a weak bump, not of a "
+                "band; compare the maps.",
                 f"- Beverloo (2D, d -> 0, C = 0.58-1.5): {lo:.0f}-{hi:.0f} kg/s/m.",
                 "",
                 "![e_vp_bar maps](images/silo_maps.png)",
