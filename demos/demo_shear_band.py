@@ -33,7 +33,7 @@ import numpy as np
 from dolfinx import mesh
 from mpi4py import MPI
 
-from dolfin_mpm.measure import fwhm, rise_width
+from dolfin_mpm.measure import bin_sums, fwhm, rise_width
 
 H = 0.02  # layer height and width [m]
 SAND = {"E": 1e6, "nu": 0.3, "rho": 1500.0, "phi": 30.0, "gamma": 1e3, "N": 1.0}  # the paper's
@@ -114,9 +114,8 @@ def run(cells, radius, weight="cubic", shear=0.05, rate=5.0, p0=1e4, imperfectio
     y = 0.5 * (edges[1:] + edges[:-1])
 
     def profile(values):
-        idx = np.clip(np.digitize(P.x[middle, 1], edges) - 1, 0, len(y) - 1)
-        count = np.bincount(idx, minlength=len(y))
-        return np.bincount(idx, values[middle], minlength=len(y)) / np.maximum(count, 1)
+        count, total = bin_sums(P.x[middle, 1], edges, values[middle])
+        return total / np.maximum(count, 1)
 
     since_mid = np.searchsorted(ids, P.id)
     eps = profile(P.state["eps_vp"] - eps0[since_mid])

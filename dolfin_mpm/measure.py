@@ -1,8 +1,18 @@
-"""Measurements on sampled profiles: widths of peaks and of jumps (shear bands)."""
+"""Profiles from particles and their measures: binned sums, widths of peaks and of jumps."""
 
 import numpy as np
 
-__all__ = ["fwhm", "rise_width"]
+__all__ = ["bin_sums", "fwhm", "rise_width"]
+
+
+def bin_sums(coord: np.ndarray, edges: np.ndarray, *values: np.ndarray) -> np.ndarray:
+    """Point count and sums of each of ``values`` over the bins ``edges`` of ``coord``.
+
+    Points beyond the outer edges count in the end bins. ``shape=(1 + len(values), len(edges) - 1)``.
+    """
+    n = len(edges) - 1
+    bins = np.clip(np.digitize(coord, edges) - 1, 0, n - 1)
+    return np.array([np.bincount(bins, v, minlength=n) for v in (None, *values)], dtype=np.float64)
 
 
 def fwhm(y: np.ndarray, f: np.ndarray) -> float:

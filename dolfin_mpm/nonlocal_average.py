@@ -126,13 +126,12 @@ class NonlocalAverage:
         if self.is_local:
             return
         x = np.ascontiguousarray(x)
-        if (
-            self._ids is None
-            or not (np.array_equal(ids, self._ids) or self._drop_removed(ids))
-            or np.max(np.sum((x - self._x_built) ** 2, axis=1), initial=0.0) > (0.5 * self.skin) ** 2
-        ):
+        kept = self._ids is not None and (np.array_equal(ids, self._ids) or self._drop_removed(ids))
+        u = x - self._x_built if kept else None  # displacements since the last rebuild
+        if u is None or np.max(np.sum(u * u, axis=1), initial=0.0) > (0.5 * self.skin) ** 2:
             self._rebuild(x, ids)
-        u = (x - self._x_built).astype(np.float32)
+            u = np.zeros_like(x)
+        u = u.astype(np.float32)
         s, d, tmp = self._work
         s.fill(0.0)
         for c in range(x.shape[1]):

@@ -325,7 +325,7 @@ class Solver:
                 if math.sqrt(norms[0]) <= self.fixed_point_tol * max(math.sqrt(norms[1]), scale_F, 1e-300):
                     break
                 R_next = R_in + self.relaxation * (R - R_in)
-                R_in = mixer(R_in, R_next) if self.anderson_depth else R_next
+                R_in = mixer(R_in, R_next)  # depth 0: R_next itself
                 grid.f_int.x.array[:owned] = R_in
                 grid.f_int.x.scatter_forward()
         else:

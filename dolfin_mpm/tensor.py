@@ -12,6 +12,7 @@ __all__ = [
     "component_first",
     "det",
     "deviator",
+    "equivalent_stress",
     "invariants",
     "jaumann_rotation",
     "particle_first",
@@ -113,8 +114,13 @@ def deviator(sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return p, particle_first(s)
 
 
+def equivalent_stress(s: np.ndarray) -> np.ndarray:
+    """``q = sqrt(3/2 s:s)`` [Pa] of deviators ``s`` (``shape=(n, 3, 3)``), ``shape=(n,)``."""
+    c = component_first(s)
+    return np.sqrt(1.5 * (c * c).sum(axis=(0, 1)))
+
+
 def invariants(sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Pressure ``p`` and equivalent stress ``q = sqrt(3/2 s:s)`` [Pa], each ``shape=(n,)``."""
     p, s = deviator(sigma)
-    s = component_first(s)
-    return p, np.sqrt(1.5 * (s * s).sum(axis=(0, 1)))
+    return p, equivalent_stress(s)

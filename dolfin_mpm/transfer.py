@@ -8,6 +8,7 @@ nodes of a cell and the vector components, never over particles.
 import numpy as np
 
 from dolfin_mpm.locate import Basis
+from dolfin_mpm.tensor import particle_first
 
 __all__ = ["gradient", "internal_force", "interpolate", "scatter"]
 
@@ -70,4 +71,4 @@ def gradient(basis: Basis, nodal: np.ndarray) -> np.ndarray:
         vi = np.ascontiguousarray(nodal[:, i]).take(basis.dofs)  # (gdim+1, n)
         for j in range(g):
             L[i, j] = (vi * basis.dN[:, j, :]).sum(axis=0)
-    return np.moveaxis(L, -1, 0)
+    return particle_first(L)

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from dolfin_mpm.measure import fwhm, rise_width
+from dolfin_mpm.measure import bin_sums, fwhm, rise_width
 
 
 def test_fwhm_of_a_gaussian():
@@ -21,3 +21,10 @@ def test_rise_width_of_a_ramp_with_noise():
     dip = f.copy()
     dip[600] -= 0.3  # a dip on the way up does not fold the profile back
     assert abs(rise_width(y, dip) - 0.8 * 0.5) < 1e-9
+
+
+def test_bin_sums_counts_and_sums_with_outliers_in_the_end_bins():
+    coord = np.array([-1.0, 0.1, 0.2, 0.6, 0.9, 2.0])
+    values = np.arange(6.0)
+    count, total = bin_sums(coord, np.array([0.0, 0.5, 1.0]), values)
+    assert np.array_equal(count, [3, 3]) and np.array_equal(total, [0 + 1 + 2, 3 + 4 + 5])

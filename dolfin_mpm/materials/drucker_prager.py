@@ -34,7 +34,7 @@ import numpy as np
 
 from dolfin_mpm.materials.base import check_range
 from dolfin_mpm.materials.elastic import LinearElastic
-from dolfin_mpm.tensor import component_first, particle_first
+from dolfin_mpm.tensor import component_first, deviator, equivalent_stress, particle_first
 
 __all__ = ["DruckerPragerViscoplastic", "Trial"]
 
@@ -90,12 +90,8 @@ class DruckerPragerViscoplastic(LinearElastic):
     # -- the three parts of the update ---------------------------------------------------------
     def trial(self, sigma: np.ndarray, d: np.ndarray, W: np.ndarray, dt: float) -> Trial:
         """Elastic predictor: the hypo-elastic update of :class:`LinearElastic`, split into p and s."""
-        s = component_first(LinearElastic.update(self, sigma, d, W, dt, {}))
-        p = -(s[0, 0] + s[1, 1] + s[2, 2]) / 3.0
-        for i in range(3):
-            s[i, i] += p
-        q = np.sqrt(1.5 * (s * s).sum(axis=(0, 1)))
-        return Trial(p=p, s=s, q=q)
+        p, s = deviator(LinearElastic.update(self, sigma, d, W, dt, {}))
+        return Trial(p=p, s=component_first(s), q=equivalent_stress(s))  # component_first: a view
 
     def increment(self, trial: Trial, dt: float) -> np.ndarray:
         """Local equivalent viscoplastic strain increment ``de = dt * e_vp`` (backward Euler).
