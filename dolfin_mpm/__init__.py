@@ -8,7 +8,7 @@ from dolfin_mpm import compat
 from dolfin_mpm.boundary import FixedBC, FrictionalWall, SlipBC, VelocityBC
 from dolfin_mpm.grid import Grid
 from dolfin_mpm.io import Output
-from dolfin_mpm.materials import DruckerPragerViscoplastic, LinearElastic
+from dolfin_mpm.materials import DruckerPragerViscoplastic, LinearElastic, VonMises
 from dolfin_mpm.nonlocal_average import NonlocalAverage
 from dolfin_mpm.particles import Particles, Sink
 from dolfin_mpm.seeding import seed
@@ -30,6 +30,7 @@ __all__ = [
     "SlipBC",
     "Solver",
     "VelocityBC",
+    "VonMises",
     "compat",
     "seed",
 ]

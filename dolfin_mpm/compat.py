@@ -11,8 +11,10 @@ try:  # The PyPI wheels load their MPI/PETSc libraries on this import.
 except ImportError:
     pass
 
+import basix
 import dolfinx
 import numpy as np
+import ufl
 from dolfinx import fem, geometry, la
 
 __all__ = [
@@ -20,8 +22,12 @@ __all__ = [
     "bounding_box_tree",
     "candidate_cells",
     "cell_dofs",
+    "evaluate",
+    "function_space",
     "geometry_dofmap",
     "petsc_vec",
+    "quadrature_points",
+    "quadrature_space",
     "scalar_space",
     "scatter_reverse_add",
     "vector_space",
@@ -31,19 +37,50 @@ DOLFINX_VERSION: tuple[int, int] = tuple(int(v) for v in dolfinx.__version__.spl
 _NEW = DOLFINX_VERSION >= (0, 8)
 
 
+def function_space(msh, family: str, degree: int, shape: tuple[int, ...] = ()) -> fem.FunctionSpace:
+    """Space of ``family`` (e.g. ``"Lagrange"``, ``"DG"``) and ``degree``, values of ``shape``."""
+    if _NEW:
+        return fem.functionspace(msh, (family, degree, shape) if shape else (family, degree))
+    if shape:
+        return fem.VectorFunctionSpace(msh, (family, degree), dim=shape[0])
+    return fem.FunctionSpace(msh, (family, degree))
+
+
 def vector_space(msh) -> fem.FunctionSpace:
     """Vector-valued continuous P1 space on ``msh`` (block size = geometric dimension)."""
-    gdim = msh.geometry.dim
-    if _NEW:
-        return fem.functionspace(msh, ("Lagrange", 1, (gdim,)))
-    return fem.VectorFunctionSpace(msh, ("Lagrange", 1))
+    return function_space(msh, "Lagrange", 1, (msh.geometry.dim,))
 
 
 def scalar_space(msh) -> fem.FunctionSpace:
     """Scalar continuous P1 space on ``msh``."""
+    return function_space(msh, "Lagrange", 1)
+
+
+def quadrature_points(msh, degree: int) -> tuple[np.ndarray, np.ndarray]:
+    """Reference points ``shape=(nq, tdim)`` and weights of the default rule of ``degree``, in
+    the order of :func:`quadrature_space`'s dofs."""
+    cell = getattr(basix.CellType, msh.topology.cell_name())
+    return basix.make_quadrature(cell, degree)
+
+
+def quadrature_space(msh, degree: int, size: int) -> fem.FunctionSpace:
+    """Vectors of ``size`` values at the points of :func:`quadrature_points` (``size`` >= 2)."""
     if _NEW:
-        return fem.functionspace(msh, ("Lagrange", 1))
-    return fem.FunctionSpace(msh, ("Lagrange", 1))
+        import basix.ufl
+
+        element = basix.ufl.quadrature_element(
+            msh.basix_cell(), value_shape=(size,), scheme="default", degree=degree
+        )
+        return fem.functionspace(msh, element)
+    element = ufl.VectorElement("Quadrature", msh.ufl_cell(), degree=degree, dim=size, quad_scheme="default")
+    return fem.FunctionSpace(msh, element)
+
+
+def evaluate(expr: fem.Expression, msh, cells: np.ndarray) -> np.ndarray:
+    """Values of ``expr`` at its points in ``cells``, ``shape=(num_cells, num_points, value_size)``."""
+    cells = np.asarray(cells, dtype=np.int32)
+    values = expr.eval(msh, cells) if _NEW else expr.eval(cells)
+    return values.reshape(len(cells), expr.X().shape[0], -1)
 
 
 def geometry_dofmap(msh) -> np.ndarray:

@@ -18,7 +18,7 @@ from dolfin_mpm.anderson import Anderson
 from dolfin_mpm.boundary import BoundaryCondition
 from dolfin_mpm.grid import Grid
 from dolfin_mpm.locate import Basis, basis_at, locate
-from dolfin_mpm.materials.base import Material, check_range
+from dolfin_mpm.materials import DruckerPragerViscoplastic, Material, check_range
 from dolfin_mpm.nonlocal_average import NonlocalAverage
 from dolfin_mpm.particles import Particles, Sink
 from dolfin_mpm.tensor import det, split_velocity_gradient
@@ -104,7 +104,7 @@ class Solver:
         self.on_exit = on_exit
         self.averaging = None if averaging is None or averaging.is_local else averaging
         if self.averaging is not None and (
-            len(self.materials) != 1 or not hasattr(self.materials[0], "increment")
+            len(self.materials) != 1 or not isinstance(self.materials[0], DruckerPragerViscoplastic)
         ):
             raise ValueError(
                 "averaging needs exactly one material with a split update (DruckerPragerViscoplastic)"

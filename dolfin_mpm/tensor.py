@@ -13,12 +13,18 @@ __all__ = [
     "det",
     "deviator",
     "equivalent_stress",
+    "from_mandel",
     "invariants",
     "jaumann_rotation",
     "particle_first",
     "rotate",
     "split_velocity_gradient",
+    "to_mandel",
 ]
+
+# Mandel order: (xx, yy, zz, sqrt2 yz, sqrt2 xz, sqrt2 xy).
+_MANDEL = ((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1))
+_SQRT2 = np.sqrt(2.0)
 
 
 def component_first(a: np.ndarray) -> np.ndarray:
@@ -124,3 +130,21 @@ def invariants(sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Pressure ``p`` and equivalent stress ``q = sqrt(3/2 s:s)`` [Pa], each ``shape=(n,)``."""
     p, s = deviator(sigma)
     return p, equivalent_stress(s)
+
+
+def to_mandel(a: np.ndarray) -> np.ndarray:
+    """Mandel 6-vectors of symmetric tensors ``shape=(n, 3, 3)``, ``shape=(n, 6)``.
+
+    Double contraction becomes a dot product: ``a:b = to_mandel(a) @ to_mandel(b)``.
+    """
+    v = np.stack([a[:, i, j] for i, j in _MANDEL], axis=1)
+    v[:, 3:] *= _SQRT2
+    return v
+
+
+def from_mandel(v: np.ndarray) -> np.ndarray:
+    """Symmetric tensors ``shape=(n, 3, 3)`` of Mandel 6-vectors ``shape=(n, 6)``."""
+    a = np.empty((v.shape[0], 3, 3))
+    for k, (i, j) in enumerate(_MANDEL):
+        a[:, i, j] = a[:, j, i] = v[:, k] / (_SQRT2 if k >= 3 else 1.0)
+    return a

@@ -113,7 +113,8 @@ def test_tension_gives_stress_free_state_without_nan():
 @pytest.mark.parametrize(
     "kwargs, name",
     [({"phi": 0.0}, "phi"), ({"phi": 90.0}, "phi"), ({"gamma": 0.0}, "gamma"), ({"N": 0.0}, "N"),
-     ({"N": -1.0}, "N"), ({"E": -1.0}, "E"), ({"nu": 0.6}, "nu")],
+     ({"N": -1.0}, "N"), ({"E": -1.0}, "E"), ({"nu": 0.6}, "nu"), ({"c": -1.0}, "c"),
+     ({"gamma": np.nan}, "gamma")],
 )  # fmt: skip
 def test_bad_parameters(kwargs, name):
     with pytest.raises(ValueError, match=rf"^{name} must be in"):

@@ -25,7 +25,11 @@ point ever carries more than its own law allows.
 
 No tension: a cohesionless material point whose trial pressure is ``p <= 0`` loses contact
 with its neighbours and becomes stress free (the apex of the cone); the deviatoric strain
-absorbed there, ``q_trial / 2G``, is recorded as viscoplastic.
+absorbed there, ``q_trial / 2G``, is recorded as viscoplastic. With a cohesion ``c`` the cone
+and its apex shift to ``p = -c cot(phi)``, where the stress is ``c cot(phi) I``.
+
+``gamma = inf`` is the rate-independent limit: the stress returns onto the cone. The implicit
+FE solver uses that with :meth:`tangent`, the consistent tangent of the return mapping.
 """
 
 from dataclasses import dataclass
@@ -33,49 +37,37 @@ from dataclasses import dataclass
 import numpy as np
 
 from dolfin_mpm.materials.base import check_range
-from dolfin_mpm.materials.elastic import LinearElastic
-from dolfin_mpm.tensor import component_first, deviator, equivalent_stress, particle_first
+from dolfin_mpm.materials.radial_return import IsochoricPlastic, Trial
 
-__all__ = ["DruckerPragerViscoplastic", "Trial"]
-
-
-@dataclass
-class Trial:
-    """Elastic predictor of one step (component-first arrays).
-
-    Attributes:
-        p: pressure [Pa], ``shape=(n,)``.
-        s: deviator [Pa], ``shape=(3, 3, n)``.
-        q: equivalent stress of ``s`` [Pa], ``shape=(n,)``.
-
-    """
-
-    p: np.ndarray
-    s: np.ndarray
-    q: np.ndarray
+__all__ = ["DruckerPragerViscoplastic"]
 
 
 @dataclass(frozen=True)
-class DruckerPragerViscoplastic(LinearElastic):
+class DruckerPragerViscoplastic(IsochoricPlastic):
     """Hypo-elastic, Perzyna-viscoplastic Drucker–Prager solid with g = q.
 
     Args:
         E, nu, rho: elasticity and density, as for :class:`LinearElastic`.
         phi: angle of internal friction [degrees], in (0, 90).
-        gamma: viscosity parameter [1/s], > 0.
+        gamma: viscosity parameter [1/s], in (0, inf]; ``inf`` is the rate-independent limit
+            (the stress returns onto the cone, ``q = m p``).
         N: exponent of the viscosity law, > 0.
+        c: cohesion [Pa], >= 0: the cone ``q = m (p + c cot(phi))``; the paper's sand has
+            none.
 
     """
 
     phi: float
     gamma: float
     N: float = 1.0
+    c: float = 0.0
 
     def __post_init__(self):
         super().__post_init__()
         check_range("phi", self.phi, 0.0, 90.0)
-        check_range("gamma", self.gamma, 0.0, np.inf)
+        check_range("gamma", self.gamma, 0.0, np.inf, closed=(False, True))
         check_range("N", self.N, 0.0, np.inf)
+        check_range("c", self.c, 0.0, np.inf, closed=(True, False))
 
     @property
     def m(self) -> float:
@@ -83,31 +75,34 @@ class DruckerPragerViscoplastic(LinearElastic):
         s = np.sin(np.radians(self.phi))
         return 18.0 * s / (9.0 - s * s)
 
+    @property
+    def tension_limit(self) -> float:
+        """``c cot(phi)`` [Pa]: the cone's apex is at ``p = -c cot(phi)``."""
+        return self.c / np.tan(np.radians(self.phi))
+
     def state_fields(self):
         # Equivalent viscoplastic strain rate (local and non-local) [1/s], accumulated strain [-].
         return {"eps_vp_rate": (), "eps_vp_rate_nonlocal": (), "eps_vp": ()}
 
     # -- the three parts of the update ---------------------------------------------------------
-    def trial(self, sigma: np.ndarray, d: np.ndarray, W: np.ndarray, dt: float) -> Trial:
-        """Elastic predictor: the hypo-elastic update of :class:`LinearElastic`, split into p and s."""
-        p, s = deviator(LinearElastic.update(self, sigma, d, W, dt, {}))
-        return Trial(p=p, s=component_first(s), q=equivalent_stress(s))  # component_first: a view
-
     def increment(self, trial: Trial, dt: float) -> np.ndarray:
         """Local equivalent viscoplastic strain increment ``de = dt * e_vp`` (backward Euler).
 
         Solves ``de = dt 3/2 gamma <Phi(q)>`` with ``q = q_trial - 2 G de`` for ``de >= 0``;
-        at the apex (``p <= 0``) ``de = q_trial / 2G``. ``shape=(n,)``.
+        at the apex (``p <= -c cot(phi)``) ``de = q_trial / 2G``. ``shape=(n,)``.
         """
-        G, mp = self.G, self.m * trial.p
+        G, mp = self.G, self.m * (trial.p + self.tension_limit)
         de = np.zeros_like(trial.q)
-        apex = trial.p <= 0.0
+        apex = mp <= 0.0
         de[apex] = trial.q[apex] / (2.0 * G)
         act = ~apex & (trial.q > mp)
         mp_a = mp[act]
         x_tr = (trial.q[act] - mp_a) / mp_a  # relative overstress of the trial state
-        a = 3.0 * G * self.gamma * dt / mp_a
-        x = x_tr / (1.0 + a) if self.N == 1.0 else _solve_overstress(x_tr, a, self.N)
+        if np.isinf(self.gamma):
+            x = 0.0
+        else:
+            a = 3.0 * G * self.gamma * dt / mp_a
+            x = x_tr / (1.0 + a) if self.N == 1.0 else _solve_overstress(x_tr, a, self.N)
         de[act] = (x_tr - x) * mp_a / (2.0 * G)
         return de
 
@@ -121,13 +116,43 @@ class DruckerPragerViscoplastic(LinearElastic):
         if de_nonlocal is not None:
             de = np.maximum(de, de_nonlocal)
         q = np.maximum(trial.q - 2.0 * self.G * de, 0.0)
-        scale = np.divide(q, trial.q, out=np.zeros_like(q), where=trial.q > 0.0)
-        scale[trial.p <= 0.0] = 0.0
-        sig = trial.s * scale
-        p = np.maximum(trial.p, 0.0)
-        for i in range(3):
-            sig[i, i] -= p
-        return particle_first(sig)
+        q[trial.p <= -self.tension_limit] = 0.0
+        return self.radial_stress(trial, q, np.maximum(trial.p, -self.tension_limit))
+
+    def tangent(self, trial: Trial, de: np.ndarray, dt: float) -> np.ndarray:
+        """Consistent tangent of the local update ``stress(trial, increment(trial, dt))``.
+
+        Mandel, ``shape=(n, 6, 6)`` [Pa]; zero at the apex (the stress there is fixed).
+        """
+        pt = trial.p + self.tension_limit
+        y = self.m * pt  # m (p + c cot phi): the yield value of q
+        q = np.maximum(trial.q - 2.0 * self.G * de, 0.0)
+        dq_dqtrial, dq_dp = np.ones_like(q), np.zeros_like(q)
+        act = (de > 0.0) & (pt > 0.0)
+        if np.isinf(self.gamma):
+            dq_dqtrial[act], dq_dp[act] = 0.0, self.m
+        else:  # implicit derivative of x + a x^N = x_tr, q = y (1 + x), a = 3 G gamma dt / y
+            ya, x = y[act], q[act] / y[act] - 1.0
+            a = 3.0 * self.G * self.gamma * dt / ya
+            with np.errstate(divide="ignore"):
+                slope = 1.0 + a * self.N * x ** (self.N - 1.0)
+            dq_dqtrial[act] = 1.0 / slope
+            dq_dp[act] = self.m * ((1.0 + x) + (a * x**self.N - trial.q[act] / ya) / slope)
+        D = self.radial_tangent(trial, q, dq_dqtrial, dq_dp)
+        D[pt <= 0.0] = 0.0
+        return D
+
+    def small_strain_update(self, sigma, deps, state, dt=1.0):
+        """Implicit small-strain step from ``sigma`` by the strain increment ``deps`` (n, 3, 3)
+        over ``dt`` [s] (it matters only for finite ``gamma``).
+
+        Returns the stress, the consistent tangent (Mandel, ``shape=(n, 6, 6)``) and the new
+        state, leaving ``state`` untouched.
+        """
+        trial = self.trial(sigma, deps / dt, np.zeros_like(deps), dt)
+        de = self.increment(trial, dt)
+        new = {"eps_vp_rate": de / dt, "eps_vp_rate_nonlocal": de / dt, "eps_vp": state["eps_vp"] + de}
+        return self.stress(trial, de), self.tangent(trial, de, dt), new
 
     def update(self, sigma, d, W, dt, state):
         trial = self.trial(sigma, d, W, dt)

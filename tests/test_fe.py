@@ -1,0 +1,59 @@
+"""The reference FE solver: its benchmarks against analytical solutions, run small."""
+
+import numpy as np
+import pytest
+from dolfinx import mesh
+from mpi4py import MPI
+
+from dolfin_mpm.fe import ConvergenceError, QuasiStatic
+from dolfin_mpm.materials import VonMises
+from test_demos import load
+
+
+def test_cylinder_limit_pressure_and_elastoplastic_path(tmp_path):
+    demo = load("demo_cylinder")
+    r = demo.run(n_radial=5, n_theta=10, step=0.1, output=tmp_path, progress=False)
+    assert r["collapsed"], "Newton must fail just beyond the limit pressure"
+    assert abs(r["limit_error"]) < 0.01  # the issue's 1 %
+    assert r["u_b_error"] < 0.02  # Hill's curve (approximate for nu = 0.3)
+    assert r["c_error"] < 0.1  # plastic radius within a tenth of a (cells are a/5 wide)
+    assert (tmp_path / "cylinder.png").exists()
+
+
+def test_footing_on_cohesive_soil_reaches_prandtl():
+    r = load("demo_footing").run("cohesive", n=12, steps=10, progress=False)
+    assert r["failed_at"] is None
+    assert abs(r["error"]) < 0.05  # the issue's 5 %
+    assert abs(r["plateau"]) < 0.01  # the curve has levelled off: a collapse load
+
+
+def test_oedometer_follows_k0_then_the_cone():
+    r = load("demo_oedometer").run(progress=False)
+    assert r["K0_fe"] == pytest.approx(r["K0"], rel=1e-10)
+    assert r["error"] < 1e-10  # the whole stress path, elastic and plastic
+    assert r["sigma_z_equals_sigma_h"] < 1e-10
+    assert r["K0"] < r["K_final_fe"] < r["K_active"]
+
+
+def unit_square(n=2):
+    return mesh.create_rectangle(MPI.COMM_WORLD, [np.zeros(2), np.ones(2)], [n, n], mesh.CellType.triangle)
+
+
+def test_convergence_error_names_the_load_reached():
+    msh = unit_square()
+    fe = QuasiStatic(msh, VonMises(E=1e9, nu=0.3, rho=1.0, sigma_y=1e6))
+    bottom = mesh.locate_entities_boundary(msh, 1, lambda x: np.isclose(x[1], 0.0))
+    fe.fix(bottom, 0)
+    fe.fix(bottom, 1)
+    fe.pressure(mesh.locate_entities_boundary(msh, 1, lambda x: np.isclose(x[0], 0.0)), 1e6)
+    with pytest.raises(ConvergenceError, match="did not converge from load") as err:
+        fe.advance([0.2, 5.0], min_step=0.05)  # a side pressure of 5 sigma_y: no equilibrium
+    assert 0.2 <= err.value.load < 5.0 and err.value.load == fe.load
+
+
+@pytest.mark.parametrize(
+    "kwargs, match", [({"degree": 3}, "degree must be 1 or 2"), ({"tol": 0.0}, r"tol must be in \(0, 1\)")]
+)
+def test_bad_solver_input(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        QuasiStatic(unit_square(), VonMises(E=1e9, nu=0.3, rho=1.0, sigma_y=1e6), **kwargs)
