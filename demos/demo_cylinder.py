@@ -101,8 +101,10 @@ def run(n_radial=10, n_theta=20, step=0.05, output=None, progress=True):
         path["c"].append(float(r_cell[plastic].max()) if plastic.any() else A)
         path["iterations"].append(fe.history[-1].iterations)
         if progress:
-            print(f"p = {path['p'][-1] / 1e6:7.2f} MPa  u_b = {1e3 * path['u_b'][-1]:.5f} mm  "
-                  f"plastic to r = {1e3 * path['c'][-1]:.1f} mm  ({path['iterations'][-1]} Newton iterations)")  # fmt: skip
+            print(
+                f"p = {path['p'][-1] / 1e6:7.2f} MPa  u_b = {1e3 * path['u_b'][-1]:.5f} mm  plastic to "
+                f"r = {1e3 * path['c'][-1]:.1f} mm  ({path['iterations'][-1]} Newton iterations)"
+            )
 
     # Up to the limit in steps, then on beyond it: the step is cut in halves until Newton
     # fails within 1e-3 p_lim of the last converged pressure, the FE limit pressure.
@@ -112,7 +114,7 @@ def run(n_radial=10, n_theta=20, step=0.05, output=None, progress=True):
         collapsed = False
     except ConvergenceError:
         collapsed = True
-    p, u_b = np.array(path["p"]), np.array(path["u_b"])
+    p, u_b, c = np.array(path["p"]), np.array(path["u_b"]), np.array(path["c"])
     below = (p > 0) & (p <= 0.99 * P_LIMIT)
     u_exact = np.array([outer_displacement(x) for x in p[below]])
     result = {
@@ -121,7 +123,7 @@ def run(n_radial=10, n_theta=20, step=0.05, output=None, progress=True):
         "limit_error": float(p.max() / P_LIMIT - 1.0),
         "collapsed": collapsed,
         "u_b_error": float(np.max(np.abs(u_b[below] / u_exact - 1.0))),
-        "c_error": float(np.max(np.abs(np.array(path["c"])[below] - [plastic_radius(x) for x in p[below]])) / A),
+        "c_error": float(np.max(np.abs(c[below] - [plastic_radius(x) for x in p[below]])) / A),
         "newton_mean": float(np.mean(path["iterations"][1:])),
         "solve_seconds": float(sum(s.seconds for s in fe.history)),
         "cells": int(owned),
@@ -150,7 +152,12 @@ def plot(result, path):
     ax1.set(xlabel="outer displacement u_b [mm]", ylabel="internal pressure p [MPa]")
     ax1.legend()
     ax2.plot(p / 1e6, [1e3 * plastic_radius(x) for x in p], "k-", label="Hill")
-    ax2.plot(np.array(result["path"]["p"]) / 1e6, 1e3 * np.array(result["path"]["c"]), "o", label="FE (cell centres)")
+    ax2.plot(
+        np.array(result["path"]["p"]) / 1e6,
+        1e3 * np.array(result["path"]["c"]),
+        "o",
+        label="FE (cell centres)",
+    )
     ax2.set(xlabel="internal pressure p [MPa]", ylabel="plastic radius c [mm]")
     ax2.legend()
     fig.tight_layout()
@@ -166,6 +173,8 @@ if __name__ == "__main__":
     res = run(5, 10, 0.1, args.output) if args.quick else run(output=args.output)
     print(f"limit pressure: FE {res['p_max'] / 1e6:.2f} MPa, exact {P_LIMIT / 1e6:.2f} MPa "
           f"({100 * res['limit_error']:+.2f} %)" + ("" if res["collapsed"] else "; NO COLLAPSE"))  # fmt: skip
-    print(f"outer displacement vs Hill: max error {100 * res['u_b_error']:.2f} %; plastic radius "
-          f"max error {100 * res['c_error']:.1f} % of a; {res['newton_mean']:.1f} Newton iterations per step, "
-          f"{res['solve_seconds']:.1f} s")  # fmt: skip
+    print(
+        f"outer displacement vs Hill: max error {100 * res['u_b_error']:.2f} %; plastic radius max error "
+        f"{100 * res['c_error']:.1f} % of a; {res['newton_mean']:.1f} Newton iterations per step, "
+        f"{res['solve_seconds']:.1f} s"
+    )

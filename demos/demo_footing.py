@@ -155,7 +155,12 @@ if __name__ == "__main__":
     parser.add_argument("--quick", action="store_true", help="coarse mesh, few steps")
     parser.add_argument("--output", type=Path, default=Path("results/footing"))
     args = parser.parse_args()
-    res = run(args.soil, 12, steps=10, output=args.output) if args.quick else run(args.soil, output=args.output)
-    print(f"{args.soil}: q_u / c = {res['q_u_over_c']:.3f} (N_c = {res['N_c']:.3f}, {100 * res['error']:+.1f} %), "
-          f"last steps {100 * res['plateau']:+.2f} %; {res['dofs']} dofs, Newton {res['newton_mean']:.1f} "
-          f"mean / {res['newton_max']} max, {res['solve_seconds']:.1f} s")  # fmt: skip
+    res = (
+        run(args.soil, 12, steps=10, output=args.output) if args.quick else run(args.soil, output=args.output)
+    )
+    print(
+        f"{args.soil}: q_u / c = {res['q_u_over_c']:.3f} "
+        f"(N_c = {res['N_c']:.3f}, {100 * res['error']:+.1f} %),"
+        f" last steps {100 * res['plateau']:+.2f} %; {res['dofs']} dofs, Newton {res['newton_mean']:.1f} "
+        f"mean / {res['newton_max']} max, {res['solve_seconds']:.1f} s"
+    )

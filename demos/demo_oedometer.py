@@ -68,11 +68,14 @@ def run(strain=0.03, steps=30, output=None, progress=True):
         "error": float(np.max(np.abs(sigma_h - exact)) / sigma_v.max()),
         "sigma_z_equals_sigma_h": float(np.max(np.abs(np.array(path["sigma_z"]) - sigma_h)) / sigma_v.max()),
         "newton_mean": float(np.mean([s.iterations for s in fe.history])),
+        "solve_seconds": float(sum(s.seconds for s in fe.history)),
         "path": path,
     }
     if progress:
-        print(f"K0: FE {result['K0_fe']:.6f}, exact {K0:.6f}; final ratio {result['K_final_fe']:.4f} -> "
-              f"active limit {K_ACTIVE:.4f}; max |sigma_h - exact| / sigma_v,max = {result['error']:.1e}")  # fmt: skip
+        print(
+            f"K0: FE {result['K0_fe']:.6f}, exact {K0:.6f}; final ratio {result['K_final_fe']:.4f} -> active "
+            f"limit {K_ACTIVE:.4f}; max |sigma_h - exact| / sigma_v,max = {result['error']:.1e}"
+        )
     if output is not None:
         output = Path(output)
         output.mkdir(parents=True, exist_ok=True)
@@ -91,7 +94,9 @@ def plot(result, path):
     sv = np.linspace(0.0, max(result["path"]["sigma_v"]), 200)
     fig, ax = plt.subplots(figsize=(5, 4))
     ax.plot(sv / 1e3, horizontal_stress(sv)[0] / 1e3, "k-", label="K0 branch, then the cone")
-    ax.plot(np.array(result["path"]["sigma_v"]) / 1e3, np.array(result["path"]["sigma_h"]) / 1e3, "o", label="FE")
+    ax.plot(
+        np.array(result["path"]["sigma_v"]) / 1e3, np.array(result["path"]["sigma_h"]) / 1e3, "o", label="FE"
+    )
     ax.plot(sv / 1e3, K_ACTIVE * sv / 1e3, "k:", label=f"K_a = {K_ACTIVE:.3f}")
     ax.set(xlabel="vertical stress [kPa]", ylabel="horizontal stress [kPa]")
     ax.legend()

@@ -57,8 +57,10 @@ def scalar_space(msh) -> fem.FunctionSpace:
 
 
 def quadrature_points(msh, degree: int) -> tuple[np.ndarray, np.ndarray]:
-    """Reference points ``shape=(nq, tdim)`` and weights of the default rule of ``degree``, in
-    the order of :func:`quadrature_space`'s dofs."""
+    """Reference points ``shape=(nq, tdim)`` and weights of the default rule of ``degree``.
+
+    The points are in the order of :func:`quadrature_space`'s dofs.
+    """
     cell = getattr(basix.CellType, msh.topology.cell_name())
     return basix.make_quadrature(cell, degree)
 

@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 from dolfinx import mesh
 from mpi4py import MPI
+from test_demos import load
 
 from dolfin_mpm.fe import ConvergenceError, QuasiStatic
 from dolfin_mpm.materials import VonMises
-from test_demos import load
 
 
 def test_cylinder_limit_pressure_and_elastoplastic_path(tmp_path):

@@ -100,9 +100,7 @@ def test_perzyna_tends_to_the_rate_independent_limit():
         assert err < expected
 
 
-@pytest.mark.parametrize(
-    "kwargs, name", [({"sigma_y": 0.0}, "sigma_y"), ({"sigma_y": 1.0, "H": -1.0}, "H")]
-)
+@pytest.mark.parametrize("kwargs, name", [({"sigma_y": 0.0}, "sigma_y"), ({"sigma_y": 1.0, "H": -1.0}, "H")])
 def test_bad_von_mises_parameters(kwargs, name):
     with pytest.raises(ValueError, match=rf"^{name} must be in"):
         VonMises(**ELASTIC, **kwargs)

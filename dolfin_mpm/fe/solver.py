@@ -17,15 +17,15 @@ import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
+import dolfinx.fem.petsc
 import numpy as np
 import ufl
+from dolfinx import fem, mesh
 from mpi4py import MPI
 from petsc4py import PETSc
 
-import dolfinx.fem.petsc
 from dolfin_mpm import compat
 from dolfin_mpm.tensor import from_mandel, to_mandel
-from dolfinx import fem, mesh
 
 __all__ = ["ConvergenceError", "QuasiStatic", "Step"]
 
@@ -237,7 +237,9 @@ class QuasiStatic:
         eps4 = compat.evaluate(self._strain_expr, self.msh, self._cells).reshape(-1, 4)
         eps = np.zeros((len(eps4), 6))
         eps[:, _PLANE] = eps4
-        sigma, D, state = self.material.small_strain_update(self.sigma, from_mandel(eps - self._eps), self.state)
+        sigma, D, state = self.material.small_strain_update(
+            self.sigma, from_mandel(eps - self._eps), self.state
+        )
         self._trial = (sigma, state, eps)
         self._stress_q.x.array.reshape(-1, 4)[self._q_dofs] = to_mandel(sigma)[:, _PLANE]
         self._tangent_q.x.array.reshape(-1, 16)[self._q_dofs] = D[:, _PLANE][:, :, _PLANE].reshape(-1, 16)

@@ -143,9 +143,9 @@ class DruckerPragerViscoplastic(IsochoricPlastic):
         return D
 
     def small_strain_update(self, sigma, deps, state, dt=1.0):
-        """Implicit small-strain step from ``sigma`` by the strain increment ``deps`` (n, 3, 3)
-        over ``dt`` [s] (it matters only for finite ``gamma``).
+        """Implicit small-strain step from ``sigma`` by the strain increment ``deps`` (n, 3, 3).
 
+        ``dt`` [s] matters only for finite ``gamma``.
         Returns the stress, the consistent tangent (Mandel, ``shape=(n, 6, 6)``) and the new
         state, leaving ``state`` untouched.
         """

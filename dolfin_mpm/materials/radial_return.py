@@ -58,8 +58,7 @@ class IsochoricPlastic(LinearElastic):
 
     @staticmethod
     def radial_stress(trial: Trial, q: np.ndarray, p: np.ndarray) -> np.ndarray:
-        """``(q / q_trial) s_trial - p I``, ``shape=(n, 3, 3)``; stress free where ``q_trial = 0``
-        and ``q = 0``."""
+        """``(q / q_trial) s_trial - p I``, ``shape=(n, 3, 3)``; no deviator where ``q_trial = 0``."""
         scale = np.divide(q, trial.q, out=np.zeros_like(q), where=trial.q > 0.0)
         sig = trial.s * scale
         for i in range(3):
