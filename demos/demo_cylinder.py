@@ -36,6 +36,7 @@ from mpi4py import MPI
 from scipy.optimize import brentq
 
 from dolfin_mpm.fe import ConvergenceError, QuasiStatic
+from dolfin_mpm.plotting import figure
 
 A, B = 0.1, 0.2  # inner and outer radius [m]
 STEEL = dm.VonMises(E=210e9, nu=0.3, rho=7850.0, sigma_y=240e6)
@@ -139,30 +140,24 @@ def run(n_radial=10, n_theta=20, step=0.05, output=None, progress=True):
 
 def plot(result, path):
     """Pressure against outer displacement and the plastic radius, FE and Hill's solution."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     p = np.linspace(0.0, P_LIMIT * 0.9999, 200)
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4))
-    ax1.plot([1e3 * outer_displacement(x) for x in p], p / 1e6, "k-", label="Hill (plane strain)")
-    ax1.plot(1e3 * np.array(result["path"]["u_b"]), np.array(result["path"]["p"]) / 1e6, "o", label="FE, P2")
-    ax1.axhline(P_LIMIT / 1e6, color="gray", ls="--", label="limit 2k ln(b/a)")
-    ax1.set(xlabel="outer displacement u_b [mm]", ylabel="internal pressure p [MPa]")
-    ax1.legend()
-    ax2.plot(p / 1e6, [1e3 * plastic_radius(x) for x in p], "k-", label="Hill")
-    ax2.plot(
-        np.array(result["path"]["p"]) / 1e6,
-        1e3 * np.array(result["path"]["c"]),
-        "o",
-        label="FE (cell centres)",
-    )
-    ax2.set(xlabel="internal pressure p [MPa]", ylabel="plastic radius c [mm]")
-    ax2.legend()
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    with figure(path, ncols=2, figsize=(10, 4)) as (ax1, ax2):
+        ax1.plot([1e3 * outer_displacement(x) for x in p], p / 1e6, "k-", label="Hill (plane strain)")
+        ax1.plot(
+            1e3 * np.array(result["path"]["u_b"]), np.array(result["path"]["p"]) / 1e6, "o", label="FE, P2"
+        )
+        ax1.axhline(P_LIMIT / 1e6, color="gray", ls="--", label="limit 2k ln(b/a)")
+        ax1.set(xlabel="outer displacement u_b [mm]", ylabel="internal pressure p [MPa]")
+        ax1.legend()
+        ax2.plot(p / 1e6, [1e3 * plastic_radius(x) for x in p], "k-", label="Hill")
+        ax2.plot(
+            np.array(result["path"]["p"]) / 1e6,
+            1e3 * np.array(result["path"]["c"]),
+            "o",
+            label="FE (cell centres)",
+        )
+        ax2.set(xlabel="internal pressure p [MPa]", ylabel="plastic radius c [mm]")
+        ax2.legend()
 
 
 if __name__ == "__main__":

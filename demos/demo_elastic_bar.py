@@ -23,6 +23,8 @@ import numpy as np
 from dolfinx import mesh
 from mpi4py import MPI
 
+from dolfin_mpm.plotting import figure
+
 
 def run(cells=30, periods=5.0, scheme="MUSL", output=None, plot=True, progress=True):
     """Run the bar; returns the measured and exact period and the energy drift."""
@@ -79,19 +81,12 @@ def run(cells=30, periods=5.0, scheme="MUSL", output=None, plot=True, progress=T
     period = float(np.mean(np.diff(crossings)))
     drift = float(np.max(np.abs(energy - energy[0])) / energy[0])
     if plot and output and comm.rank == 0:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
-        fig, ax = plt.subplots(figsize=(7, 3.5))
-        amplitude = v0 * T / (2 * np.pi)
-        ax.plot(t / T, u * 1e3, label="MPM, tip particle")
-        ax.plot(t / T, amplitude * np.sin(2 * np.pi * t / T) * 1e3, "--", label="exact first mode")
-        ax.set(xlabel="t / T", ylabel="tip displacement [mm]", title=f"Fixed-free bar, {cells} cells")
-        ax.legend(loc="upper right")
-        fig.tight_layout()
-        fig.savefig(Path(output) / "tip_displacement.png", dpi=120)
+        with figure(Path(output) / "tip_displacement.png", figsize=(7, 3.5)) as ax:
+            amplitude = v0 * T / (2 * np.pi)
+            ax.plot(t / T, u * 1e3, label="MPM, tip particle")
+            ax.plot(t / T, amplitude * np.sin(2 * np.pi * t / T) * 1e3, "--", label="exact first mode")
+            ax.set(xlabel="t / T", ylabel="tip displacement [mm]", title=f"Fixed-free bar, {cells} cells")
+            ax.legend(loc="upper right")
     return {"period": period, "period_exact": T, "energy_drift": drift, "steps": solver.step_count}
 
 

@@ -30,6 +30,7 @@ from dolfinx import mesh
 from mpi4py import MPI
 
 from dolfin_mpm.fe import ConvergenceError, QuasiStatic
+from dolfin_mpm.plotting import figure
 
 B, L = 1.0, 5.0  # footing width, size of the half model [m]
 C, E, NU = 100e3, 100e6, 0.3  # cohesion [Pa], soil stiffness
@@ -132,21 +133,13 @@ def run(kind="cohesive", n=32, settlement=0.05, steps=25, output=None, progress=
 
 def plot(results, path):
     """Load–settlement curves against the analytical bearing capacities."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(6, 4))
-    for res in results:
-        line = ax.plot(1e3 * np.array(res["curve"]["settlement"]), np.array(res["curve"]["q"]) / C,
-                       "o-", ms=3, label=f"FE, {res['soil']}")  # fmt: skip
-        ax.axhline(res["N_c"], color=line[0].get_color(), ls="--", label=f"N_c = {res['N_c']:.2f}")
-    ax.set(xlabel="settlement [mm]", ylabel="mean footing pressure q / c")
-    ax.legend()
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    with figure(path, figsize=(6, 4)) as ax:
+        for res in results:
+            line = ax.plot(1e3 * np.array(res["curve"]["settlement"]), np.array(res["curve"]["q"]) / C,
+                           "o-", ms=3, label=f"FE, {res['soil']}")  # fmt: skip
+            ax.axhline(res["N_c"], color=line[0].get_color(), ls="--", label=f"N_c = {res['N_c']:.2f}")
+        ax.set(xlabel="settlement [mm]", ylabel="mean footing pressure q / c")
+        ax.legend()
 
 
 if __name__ == "__main__":

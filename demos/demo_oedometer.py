@@ -25,6 +25,7 @@ from dolfinx import mesh
 from mpi4py import MPI
 
 from dolfin_mpm.fe import QuasiStatic
+from dolfin_mpm.plotting import figure
 
 SOIL = dm.DruckerPragerViscoplastic(E=10e6, nu=0.3, rho=1.0, phi=20.0, gamma=np.inf, c=10e3)
 K0 = SOIL.nu / (1 - SOIL.nu)
@@ -86,23 +87,18 @@ def run(strain=0.03, steps=30, output=None, progress=True):
 
 def plot(result, path):
     """Stress path sigma_h against sigma_v, FE and analytic."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     sv = np.linspace(0.0, max(result["path"]["sigma_v"]), 200)
-    fig, ax = plt.subplots(figsize=(5, 4))
-    ax.plot(sv / 1e3, horizontal_stress(sv)[0] / 1e3, "k-", label="K0 branch, then the cone")
-    ax.plot(
-        np.array(result["path"]["sigma_v"]) / 1e3, np.array(result["path"]["sigma_h"]) / 1e3, "o", label="FE"
-    )
-    ax.plot(sv / 1e3, K_ACTIVE * sv / 1e3, "k:", label=f"K_a = {K_ACTIVE:.3f}")
-    ax.set(xlabel="vertical stress [kPa]", ylabel="horizontal stress [kPa]")
-    ax.legend()
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    with figure(path, figsize=(5, 4)) as ax:
+        ax.plot(sv / 1e3, horizontal_stress(sv)[0] / 1e3, "k-", label="K0 branch, then the cone")
+        ax.plot(
+            np.array(result["path"]["sigma_v"]) / 1e3,
+            np.array(result["path"]["sigma_h"]) / 1e3,
+            "o",
+            label="FE",
+        )
+        ax.plot(sv / 1e3, K_ACTIVE * sv / 1e3, "k:", label=f"K_a = {K_ACTIVE:.3f}")
+        ax.set(xlabel="vertical stress [kPa]", ylabel="horizontal stress [kPa]")
+        ax.legend()
 
 
 if __name__ == "__main__":

@@ -34,6 +34,7 @@ from dolfinx import mesh
 from mpi4py import MPI
 
 from dolfin_mpm.measure import bin_sums, fwhm, rise_width
+from dolfin_mpm.plotting import figure
 
 H = 0.02  # layer height and width [m]
 SAND = {"E": 1e6, "nu": 0.3, "rho": 1500.0, "phi": 30.0, "gamma": 1e3, "N": 1.0}  # the paper's
@@ -169,26 +170,18 @@ def table(results) -> str:
 
 
 def plot(results, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 3, figsize=(13, 4.2), sharey=True)
-    labels = ("viscoplastic strain, 2nd half", "time-averaged e_vp_bar", "mean v_x / V, 2nd half")
-    for ax, key, label in zip(axes, ("eps_vp", "e_vp_bar", "vx"), labels):
-        for name, style in (("local", "--"), ("nonlocal", "-")):
-            for r in results[name]:
-                f = r[key] / (r[key].max() if key != "vx" else 1.0)
-                ax.plot(f, 1e3 * r["y"], style, label=f"{name}, h = {1e3 * r['h']:.2g} mm")
-        ax.set_xlabel(label + (" (normalised)" if key != "vx" else ""))
-        ax.grid(alpha=0.3)
-    axes[0].set_ylabel("distance from the weak row [mm]")
-    axes[0].set_ylim(-6, 6)
-    axes[-1].legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    with figure(path, dpi=130, ncols=3, figsize=(13, 4.2), sharey=True) as axes:
+        labels = ("viscoplastic strain, 2nd half", "time-averaged e_vp_bar", "mean v_x / V, 2nd half")
+        for ax, key, label in zip(axes, ("eps_vp", "e_vp_bar", "vx"), labels):
+            for name, style in (("local", "--"), ("nonlocal", "-")):
+                for r in results[name]:
+                    f = r[key] / (r[key].max() if key != "vx" else 1.0)
+                    ax.plot(f, 1e3 * r["y"], style, label=f"{name}, h = {1e3 * r['h']:.2g} mm")
+            ax.set_xlabel(label + (" (normalised)" if key != "vx" else ""))
+            ax.grid(alpha=0.3)
+        axes[0].set_ylabel("distance from the weak row [mm]")
+        axes[0].set_ylim(-6, 6)
+        axes[-1].legend(fontsize=7)
 
 
 def main():

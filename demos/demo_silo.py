@@ -35,6 +35,7 @@ from dolfinx import mesh
 from mpi4py import MPI
 
 from dolfin_mpm.measure import bin_sums, fwhm, rise_width
+from dolfin_mpm.plotting import figure
 
 SAND = {"E": 1e6, "nu": 0.3, "rho": 1500.0, "phi": 30.0, "gamma": 1e3, "N": 1.0}  # the paper's
 G = 9.81
@@ -317,96 +318,80 @@ def cached_run(folder: Path, xdmf=False, progress=True, **params) -> dict:
 # ## Figures and the report
 
 
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _save(fig, path: Path) -> None:
-    fig.tight_layout()
-    fig.savefig(path, dpi=130)
-    _pyplot().close(fig)
-
-
 def plot_maps(results, path: Path, width=0.2, outlet=0.1) -> None:
     """The paper's Fig. 1: e_vp_bar over the particles at t_end, one panel per run."""
-    plt = _pyplot()
-    fig, axes = plt.subplots(1, len(results), figsize=(3.4 * len(results) + 0.8, 5.2), sharey=True)
-    axes = np.atleast_1d(axes)
-    vmax = max(np.percentile(r["e_vp_bar"][r["x"][:, 1] > 0.0], 99.5) for r in results)
-    x0, x1 = 0.5 * (width - outlet), 0.5 * (width + outlet)
-    for ax, r in zip(axes, results):
-        x = 100 * r["x"]
-        dot = (0.35 * r["h"] * 100 * 72 * 3.0 / (100 * width)) ** 2  # about the particle spacing
-        sc = ax.scatter(
-            x[:, 0], x[:, 1], c=r["e_vp_bar"], s=dot, cmap="jet", vmin=0.0, vmax=vmax, linewidths=0
-        )
-        ax.plot(
-            [0, 0, 100 * x0], [30, 0, 0], "k-", [100 * x1, 100 * width, 100 * width], [0, 0, 30], "k-", lw=1.5
-        )
-        ax.set_title(f"h = {1e3 * r['h']:g} mm, r = {1e3 * r['radius']:g} mm", fontsize=10)
-        ax.set_xlabel("x [cm]")
-        ax.set_aspect("equal")
-        ax.set_xlim(-1, 100 * width + 1)
-        ax.set_ylim(-5, 30.5)
-    axes[0].set_ylabel("y [cm]")
-    fig.colorbar(sc, ax=axes.tolist(), shrink=0.8, label="e_vp_bar [1/s]")
-    fig.suptitle(f"non-local equivalent viscoplastic strain rate at t = {results[0]['t'][-1]:.2f} s")
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    size = (3.4 * len(results) + 0.8, 5.2)
+    with figure(path, dpi=130, tight=False, ncols=len(results), figsize=size, sharey=True) as axes:
+        axes = np.atleast_1d(axes)
+        fig = axes[0].figure
+        vmax = max(np.percentile(r["e_vp_bar"][r["x"][:, 1] > 0.0], 99.5) for r in results)
+        x0, x1 = 0.5 * (width - outlet), 0.5 * (width + outlet)
+        for ax, r in zip(axes, results):
+            x = 100 * r["x"]
+            dot = (0.35 * r["h"] * 100 * 72 * 3.0 / (100 * width)) ** 2  # about the particle spacing
+            sc = ax.scatter(
+                x[:, 0], x[:, 1], c=r["e_vp_bar"], s=dot, cmap="jet", vmin=0.0, vmax=vmax, linewidths=0
+            )
+            ax.plot(
+                [0, 0, 100 * x0],
+                [30, 0, 0],
+                "k-",
+                [100 * x1, 100 * width, 100 * width],
+                [0, 0, 30],
+                "k-",
+                lw=1.5,
+            )
+            ax.set_title(f"h = {1e3 * r['h']:g} mm, r = {1e3 * r['radius']:g} mm", fontsize=10)
+            ax.set_xlabel("x [cm]")
+            ax.set_aspect("equal")
+            ax.set_xlim(-1, 100 * width + 1)
+            ax.set_ylim(-5, 30.5)
+        axes[0].set_ylabel("y [cm]")
+        fig.colorbar(sc, ax=axes.tolist(), shrink=0.8, label="e_vp_bar [1/s]")
+        fig.suptitle(f"non-local equivalent viscoplastic strain rate at t = {results[0]['t'][-1]:.2f} s")
 
 
 def plot_discharge(results, path: Path, outlet=0.1) -> None:
     """Discharged mass against time, with the Beverloo band."""
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(6, 4.2))
-    t = np.linspace(0.0, max(r["t"][-1] for r in results), 50)
-    lo, hi = beverloo(outlet)
-    ax.fill_between(
-        t, lo * t, hi * t, color="0.85", label=f"Beverloo, C = 0.58-1.5 ({lo:.0f}-{hi:.0f} kg/s/m)"
-    )
-    for r in results:
-        label = f"h = {1e3 * r['h']:g} mm, r = {1e3 * r['radius']:g} mm: {r['flow_rate']:.0f} kg/s/m"
-        ax.plot(r["t"], r["discharged"], label=label)
-    ax.set_xlabel("time since the opening [s]")
-    ax.set_ylabel("discharged mass [kg/m]")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=7)
-    _save(fig, path)
+    with figure(path, dpi=130, figsize=(6, 4.2)) as ax:
+        t = np.linspace(0.0, max(r["t"][-1] for r in results), 50)
+        lo, hi = beverloo(outlet)
+        ax.fill_between(
+            t, lo * t, hi * t, color="0.85", label=f"Beverloo, C = 0.58-1.5 ({lo:.0f}-{hi:.0f} kg/s/m)"
+        )
+        for r in results:
+            label = f"h = {1e3 * r['h']:g} mm, r = {1e3 * r['radius']:g} mm: {r['flow_rate']:.0f} kg/s/m"
+            ax.plot(r["t"], r["discharged"], label=label)
+        ax.set_xlabel("time since the opening [s]")
+        ax.set_ylabel("discharged mass [kg/m]")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
 
 
 def plot_radius(results, path: Path) -> None:
     """Flow rate against the non-local radius."""
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(5, 3.6))
-    ax.plot([1e3 * r["radius"] for r in results], [r["flow_rate"] for r in results], "o-")
-    ax.set_xlabel("non-local radius r [mm] (0: local)")
-    ax.set_ylabel("flow rate [kg/s/m]")
-    ax.set_title(f"h = {1e3 * results[0]['h']:g} mm", fontsize=10)
-    ax.grid(alpha=0.3)
-    _save(fig, path)
+    with figure(path, dpi=130, figsize=(5, 3.6)) as ax:
+        ax.plot([1e3 * r["radius"] for r in results], [r["flow_rate"] for r in results], "o-")
+        ax.set_xlabel("non-local radius r [mm] (0: local)")
+        ax.set_ylabel("flow rate [kg/s/m]")
+        ax.set_title(f"h = {1e3 * results[0]['h']:g} mm", fontsize=10)
+        ax.grid(alpha=0.3)
 
 
 def plot_profiles(results, path: Path) -> None:
     """Time-averaged e_vp_bar and downward velocity across the silo at the height y_c."""
-    plt = _pyplot()
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharex=True)
-    for r in results:
-        style = "-" if r["radius"] > 0 else "--"
-        label = f"h = {1e3 * r['h']:g} mm, r = {1e3 * r['radius']:g} mm"
-        axes[0].plot(100 * r["profile_x"], r["profile_e_vp_bar"], style, label=label)
-        axes[1].plot(100 * r["profile_x"], -r["profile_v_y"], style, label=label)
-    axes[0].set_ylabel("e_vp_bar [1/s]")
-    axes[1].set_ylabel("downward velocity [m/s]")
-    for ax in axes:
-        ax.set_xlabel(f"x [cm] at y = {100 * results[0]['y_c']:g} cm")
-        ax.grid(alpha=0.3)
-    axes[1].legend(fontsize=7)
-    _save(fig, path)
+    with figure(path, dpi=130, ncols=2, figsize=(11, 4), sharex=True) as axes:
+        for r in results:
+            style = "-" if r["radius"] > 0 else "--"
+            label = f"h = {1e3 * r['h']:g} mm, r = {1e3 * r['radius']:g} mm"
+            axes[0].plot(100 * r["profile_x"], r["profile_e_vp_bar"], style, label=label)
+            axes[1].plot(100 * r["profile_x"], -r["profile_v_y"], style, label=label)
+        axes[0].set_ylabel("e_vp_bar [1/s]")
+        axes[1].set_ylabel("downward velocity [m/s]")
+        for ax in axes:
+            ax.set_xlabel(f"x [cm] at y = {100 * results[0]['y_c']:g} cm")
+            ax.grid(alpha=0.3)
+        axes[1].legend(fontsize=7)
 
 
 def _spread(values) -> str:

@@ -97,7 +97,7 @@ class QuasiStatic:
         self.sigma = np.zeros((n, 3, 3))  # converged stress at the quadrature points [Pa]
         self.state = {k: np.zeros((n, *shape)) for k, shape in material.state_fields().items()}
         self._eps = np.zeros((n, 6))  # converged strain (Mandel)
-        self._trial = None  # stress, state and strain of the current iterate
+        self._iterate = None  # stress, state and strain at the current u
 
         self.load = 0.0
         self.history: list[Step] = []
@@ -189,7 +189,7 @@ class QuasiStatic:
         """Newton from the converged state to ``load``; on success the new state is kept."""
         start = time.perf_counter()
         u_converged = self.u.x.array.copy()
-        owned = self._owned_size
+        owned = 2 * self.V.dofmap.index_map.size_local
         bc = self._bc_dofs[self._bc_dofs < owned]
         bc_values = self._bc_values[self._bc_dofs < owned]
         free = np.ones(owned, dtype=bool)
@@ -204,7 +204,7 @@ class QuasiStatic:
                 break
             if it > 0 and math.sqrt(norms[0]) <= self.tol * max(math.sqrt(norms[1:].max()), 1e-300):
                 self.load = load
-                self.sigma, self.state, self._eps = self._trial
+                self.sigma, self.state, self._eps = self._iterate
                 self.history.append(Step(load, it, time.perf_counter() - start))
                 return True
             if it == self.max_iter:
@@ -228,10 +228,6 @@ class QuasiStatic:
         self._update_stress()
         return False
 
-    @property
-    def _owned_size(self) -> int:
-        return self.V.dofmap.index_map.size_local * 2
-
     def _update_stress(self) -> None:
         """Return mapping at every quadrature point from the converged state to the current ``u``."""
         eps4 = compat.evaluate(self._strain_expr, self.msh, self._cells).reshape(-1, 4)
@@ -240,7 +236,7 @@ class QuasiStatic:
         sigma, D, state = self.material.small_strain_update(
             self.sigma, from_mandel(eps - self._eps), self.state
         )
-        self._trial = (sigma, state, eps)
+        self._iterate = (sigma, state, eps)
         self._stress_q.x.array.reshape(-1, 4)[self._q_dofs] = to_mandel(sigma)[:, _PLANE]
         self._tangent_q.x.array.reshape(-1, 16)[self._q_dofs] = D[:, _PLANE][:, :, _PLANE].reshape(-1, 16)
         self._stress_q.x.scatter_forward()
