@@ -25,6 +25,8 @@ approximation and the comparison of the curve is looser than that of the limit.
 
 import argparse
 import json
+import math
+import time
 from pathlib import Path
 
 import dolfin_mpm as dm  # import first: it loads DOLFINx's libraries
@@ -64,10 +66,10 @@ def outer_displacement(p):
     return 2 * (1 - STEEL.nu**2) * K * plastic_radius(p) ** 2 / (STEEL.E * B)
 
 
-def quarter_annulus(n_radial, n_theta):
-    """Triangle mesh of ``a <= r <= b``, ``0 <= theta <= pi/2``: a rectangle in (r, theta) mapped."""
+def quarter_annulus(n_radial, n_theta, r_max=B):
+    """Triangle mesh of ``a <= r <= r_max``, ``0 <= theta <= pi/2``: a rectangle in (r, theta) mapped."""
     msh = mesh.create_rectangle(
-        MPI.COMM_WORLD, [np.array([A, 0.0]), np.array([B, 0.5 * np.pi])], [n_radial, n_theta],
+        MPI.COMM_WORLD, [np.array([A, 0.0]), np.array([r_max, 0.5 * np.pi])], [n_radial, n_theta],
         mesh.CellType.triangle, diagonal=mesh.DiagonalType.crossed,
     )  # fmt: skip
     r, theta = msh.geometry.x[:, 0].copy(), msh.geometry.x[:, 1].copy()
@@ -75,8 +77,8 @@ def quarter_annulus(n_radial, n_theta):
     return msh
 
 
-def run(n_radial=10, n_theta=20, step=0.05, output=None, progress=True):
-    """Load the tube to collapse; returns the load path and the errors against the analytic solution."""
+def run(n_radial=10, n_theta=20, step=0.05, progress=True):
+    """Load the tube to collapse with the FE solver; returns the load path and its errors."""
     msh = quarter_annulus(n_radial, n_theta)
     fe = QuasiStatic(msh, STEEL, degree=2)
     radius = lambda x: np.hypot(x[0], x[1])  # noqa: E731
@@ -130,15 +132,80 @@ def run(n_radial=10, n_theta=20, step=0.05, output=None, progress=True):
         "cells": int(owned),
         "path": path,
     }  # fmt: skip
-    if output is not None:
-        output = Path(output)
-        output.mkdir(parents=True, exist_ok=True)
-        (output / "cylinder.json").write_text(json.dumps(result, indent=1))
-        plot(result, output / "cylinder.png")
     return result
 
 
-def plot(result, path):
+def run_mpm(n_radial=10, n_theta=20, ppc=4, speed=3e-5, damping=0.1, u_max=1e-3, records=50, progress=True):
+    """The same tube with the explicit MPM, loaded quasi-statically; returns its load path.
+
+    The grid is the FE mesh continued by two cell layers beyond r = b, room for the outer
+    surface to move; the material fills a <= r <= b with ``ppc`` particles per triangle. The
+    inner nodes move out radially at ``speed`` times the p-wave speed up to ``u_max`` [m]: by
+    symmetry a uniform radial displacement of the bore is the load of a uniform pressure, which
+    is then the radial reaction of the bore's nodes over its arc, ``p = sum F_c . e_r / (pi a / 2)``.
+    Local damping takes out the elastic waves. One step's contact force is an impulse over
+    ``dt``, so ``p`` is averaged over each of ``records`` intervals; ``u_b`` is the radial
+    velocity of the node at (b, 0) integrated in time.
+    """
+    dr = (B - A) / n_radial
+    msh = quarter_annulus(n_radial + 2, n_theta, r_max=B + 2 * dr)
+    grid = dm.Grid(msh)
+    radius = lambda x: np.hypot(x[0], x[1])  # noqa: E731
+    tol = 1e-6 * A
+    particles = dm.seed(grid, STEEL, ppc=ppc, where=lambda x: radius(x) < B + tol)
+    bore = grid.nodes_where(lambda x: np.abs(radius(x) - A) < tol)
+    e_r = grid.node_x[bore, :2] / A
+    v_bore = speed * STEEL.p_wave_speed()
+    bcs = [
+        dm.SlipBC(grid.nodes_where(lambda x: np.abs(x[1]) < tol), normal=(0, 1)),
+        dm.SlipBC(grid.nodes_where(lambda x: np.abs(x[0]) < tol), normal=(1, 0)),
+        dm.VelocityBC(bore, velocity=v_bore * e_r),
+    ]
+    outer = grid.nodes_where(lambda x: (np.abs(x[0] - B) < tol) & (np.abs(x[1]) < tol))
+    solver = dm.Solver(grid, particles, STEEL, bcs=bcs, damping=damping)
+    n_steps = records * math.ceil(u_max / (v_bore * solver.dt) / records)
+    path = {"u_a": [0.0], "u_b": [0.0], "p": [0.0]}
+    u_b, force = 0.0, 0.0
+    start = time.perf_counter()
+    for k in range(1, n_steps + 1):
+        solver.step()
+        u_b += solver.dt * grid.velocity.x.array.reshape(-1, 2)[outer, 0].sum()
+        force += (grid.f_contact.x.array.reshape(-1, 2)[bore] * e_r).sum()
+        if k % (n_steps // records) == 0:
+            path["u_a"].append(v_bore * solver.time)
+            path["u_b"].append(float(u_b))
+            path["p"].append(force / (n_steps // records) / (0.5 * np.pi * A))
+            force = 0.0
+            if progress:
+                print(f"MPM: u_a = {1e3 * path['u_a'][-1]:.4f} mm  u_b = {1e3 * u_b:.5f} mm  "
+                      f"p = {path['p'][-1] / 1e6:7.2f} MPa")  # fmt: skip
+    u_a, p, u_b = (np.array(path[k]) for k in ("u_a", "p", "u_b"))
+    # Fully plastic from u_a ~ 2 u_b(p_lim) = 0.47 mm (Hill); the plateau is the mean beyond.
+    plateau = u_a >= 0.6 * u_max
+    p_grid = np.linspace(0.0, P_LIMIT, 400)[:-1]
+    p_hill = np.interp(u_b, [outer_displacement(x) for x in p_grid], p_grid, right=P_LIMIT)
+    return {
+        "p_limit": float(P_LIMIT),
+        "p_plateau": float(p[plateau].mean()),
+        "limit_error": float(p[plateau].mean() / P_LIMIT - 1.0),
+        "plateau_spread": float((p[plateau].max() - p[plateau].min()) / P_LIMIT),
+        "path_error": float(np.max(np.abs(p[~plateau] - p_hill[~plateau])) / P_LIMIT),
+        "particles": len(particles),
+        "steps": n_steps,
+        "run_seconds": time.perf_counter() - start,
+        "path": path,
+    }
+
+
+def save(folder, fe, mpm):
+    """Write both results (JSON) and their plot into ``folder``."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "cylinder.json").write_text(json.dumps({"fe": fe, "mpm": mpm}, indent=1))
+    plot(fe, folder / "cylinder.png", mpm)
+
+
+def plot(result, path, mpm=None):
     """Pressure against outer displacement and the plastic radius, FE and Hill's solution."""
     p = np.linspace(0.0, P_LIMIT * 0.9999, 200)
     with figure(path, ncols=2, figsize=(10, 4)) as (ax1, ax2):
@@ -146,6 +213,9 @@ def plot(result, path):
         ax1.plot(
             1e3 * np.array(result["path"]["u_b"]), np.array(result["path"]["p"]) / 1e6, "o", label="FE, P2"
         )
+        if mpm is not None:
+            ax1.plot(1e3 * np.array(mpm["path"]["u_b"]), np.array(mpm["path"]["p"]) / 1e6, "s-", ms=3,
+                     label="MPM, quasi-static")  # fmt: skip
         ax1.axhline(P_LIMIT / 1e6, color="gray", ls="--", label="limit 2k ln(b/a)")
         ax1.set(xlabel="outer displacement u_b [mm]", ylabel="internal pressure p [MPa]")
         ax1.legend()
@@ -165,11 +235,19 @@ if __name__ == "__main__":
     parser.add_argument("--quick", action="store_true", help="coarse mesh, large load steps")
     parser.add_argument("--output", type=Path, default=Path("results/cylinder"))
     args = parser.parse_args()
-    res = run(5, 10, 0.1, args.output) if args.quick else run(output=args.output)
+    res = run(5, 10, 0.1) if args.quick else run()
+    mpm = run_mpm(5, 10) if args.quick else run_mpm()
+    save(args.output, res, mpm)
     print(f"limit pressure: FE {res['p_max'] / 1e6:.2f} MPa, exact {P_LIMIT / 1e6:.2f} MPa "
           f"({100 * res['limit_error']:+.2f} %)" + ("" if res["collapsed"] else "; NO COLLAPSE"))  # fmt: skip
     print(
         f"outer displacement vs Hill: max error {100 * res['u_b_error']:.2f} %; plastic radius max error "
         f"{100 * res['c_error']:.1f} % of a; {res['newton_mean']:.1f} Newton iterations per step, "
         f"{res['solve_seconds']:.1f} s"
+    )
+    print(
+        f"MPM: plateau {mpm['p_plateau'] / 1e6:.2f} MPa ({100 * mpm['limit_error']:+.2f} %, spread "
+        f"{100 * mpm['plateau_spread']:.1f} % of p_lim); p against Hill's p(u_b) before it within "
+        f"{100 * mpm['path_error']:.1f} % of p_lim; {mpm['particles']} particles, {mpm['steps']} steps, "
+        f"{mpm['run_seconds']:.1f} s"
     )

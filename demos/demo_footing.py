@@ -20,6 +20,8 @@ The mesh is graded towards the footing edge, where the stresses are singular.
 
 import argparse
 import json
+import math
+import time
 from pathlib import Path
 
 import dolfin_mpm as dm  # import first: it loads DOLFINx's libraries
@@ -74,8 +76,8 @@ def half_space(n, fine):
     return msh
 
 
-def run(kind="cohesive", n=32, settlement=0.05, steps=25, output=None, progress=True):
-    """Push the footing down by ``settlement`` [m]; returns the load–settlement curve and q_u."""
+def run(kind="cohesive", n=32, settlement=0.05, steps=25, progress=True):
+    """Push the footing down by ``settlement`` [m] with the FE solver; returns q(settlement), q_u."""
     material, n_c = soil(kind)
     msh = half_space(n, fine=0.02 * B)
     fe = QuasiStatic(msh, material, degree=2)
@@ -123,21 +125,100 @@ def run(kind="cohesive", n=32, settlement=0.05, steps=25, output=None, progress=
         "dofs": int(fe.V.dofmap.index_map.size_global * 2),
         "curve": curve,
     }
-    if output is not None:
-        output = Path(output)
-        output.mkdir(parents=True, exist_ok=True)
-        (output / f"footing_{kind}.json").write_text(json.dumps(result, indent=1))
-        plot([result], output / f"footing_{kind}.png")
     return result
 
 
-def plot(results, path):
-    """Load–settlement curves against the analytical bearing capacities."""
+def mpm_half_space(h, above=2, growth=1.25):
+    """``[0, L] x [-L, above h]`` for the MPM: ``h`` squares of four triangles to 1.5 B across and
+    B deep, growing by ``growth`` beyond; ``above`` empty rows over the surface for the heave."""
+
+    def lines(core):
+        x = [*np.arange(0.0, core + 0.5 * h, h)]
+        while x[-1] < L - 1e-9:
+            x.append(min(x[-1] + h * growth ** (len(x) - round(core / h)), L))
+        return np.array(x)
+
+    xs, ys = lines(1.5 * B), np.concatenate([-lines(B)[::-1], h * np.arange(1, above + 1)])
+    msh = mesh.create_rectangle(
+        MPI.COMM_WORLD, [np.zeros(2), np.array([len(xs) - 1.0, len(ys) - 1.0])], [len(xs) - 1, len(ys) - 1],
+        mesh.CellType.triangle, diagonal=mesh.DiagonalType.crossed,
+    )  # fmt: skip
+    gx, gy = msh.geometry.x[:, 0].copy(), msh.geometry.x[:, 1].copy()
+    msh.geometry.x[:, 0] = np.interp(gx, np.arange(len(xs)), xs)
+    msh.geometry.x[:, 1] = np.interp(gy, np.arange(len(ys)), ys)
+    return msh
+
+
+def run_mpm(
+    kind="cohesive", h=0.05, settlement=0.03, ppc=4, speed=3e-4, damping=0.1, records=40, progress=True
+):
+    """The same footing with the explicit MPM, pushed down quasi-statically; returns q(settlement).
+
+    The footing's nodes move down at ``speed`` times the p-wave speed (no horizontal motion:
+    rough) to ``settlement`` [m], well below the cell size ``h`` [m] under the footing, so the
+    material under it stays in the cells of those nodes. Local damping takes out the waves.
+    ``q`` is the footing's reaction over B/2, averaged over each of ``records`` intervals.
+    """
+    material, n_c = soil(kind)
+    grid = dm.Grid(mpm_half_space(h))
+    tol = 1e-9
+    particles = dm.seed(grid, material, ppc=ppc, where=lambda x: x[1] < tol)
+    footing = grid.nodes_where(lambda x: (np.abs(x[1]) < tol) & (x[0] < B / 2 + tol))
+    v = speed * material.p_wave_speed()
+    bcs = [
+        dm.SlipBC(grid.nodes_where(lambda x: (np.abs(x[0]) < tol) | (np.abs(x[0] - L) < tol)), normal=(1, 0)),
+        dm.FixedBC(grid.nodes_where(lambda x: np.abs(x[1] + L) < tol)),
+        dm.VelocityBC(footing, velocity=(0.0, -v)),
+    ]
+    solver = dm.Solver(grid, particles, material, bcs=bcs, damping=damping)
+    every = math.ceil(settlement / (v * solver.dt) / records)
+    curve = {"settlement": [0.0], "q": [0.0]}
+    force, start = 0.0, time.perf_counter()
+    for k in range(1, every * records + 1):
+        solver.step()
+        force += solver.reaction(footing)[1]
+        if k % every == 0:
+            curve["settlement"].append(v * solver.time)
+            curve["q"].append(-force / every / (B / 2))
+            force = 0.0
+            if progress:
+                s_mm, q_c = 1e3 * curve["settlement"][-1], curve["q"][-1] / C
+                print(f"MPM: settlement {s_mm:6.2f} mm  q/c = {q_c:6.3f}")
+    q = np.array(curve["q"])
+    q_u = q[-records // 4 :].mean()  # the plateau: the mean over the last quarter
+    return {
+        "soil": kind,
+        "N_c": float(n_c),
+        "q_u_over_c": float(q_u / C),
+        "error": float(q_u / (n_c * C) - 1.0),
+        "plateau_spread": float(q[-records // 4 :].max() / q[-records // 4 :].min() - 1.0),
+        "particles": len(particles),
+        "steps": every * records,
+        "run_seconds": time.perf_counter() - start,
+        "curve": curve,
+    }
+
+
+def save(folder, fe, mpm):
+    """Write both results (JSON) and their plot into ``folder``."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / f"footing_{fe['soil']}.json").write_text(json.dumps({"fe": fe, "mpm": mpm}, indent=1))
+    plot([fe], folder / f"footing_{fe['soil']}.png", [mpm])
+
+
+def plot(results, path, mpm=()):
+    """Load–settlement curves, FE and MPM, against the analytical bearing capacities."""
     with figure(path, figsize=(6, 4)) as ax:
+        colours = {}
         for res in results:
             line = ax.plot(1e3 * np.array(res["curve"]["settlement"]), np.array(res["curve"]["q"]) / C,
                            "o-", ms=3, label=f"FE, {res['soil']}")  # fmt: skip
-            ax.axhline(res["N_c"], color=line[0].get_color(), ls="--", label=f"N_c = {res['N_c']:.2f}")
+            colours[res["soil"]] = line[0].get_color()
+            ax.axhline(res["N_c"], color=colours[res["soil"]], ls="--", label=f"N_c = {res['N_c']:.2f}")
+        for res in mpm:
+            ax.plot(1e3 * np.array(res["curve"]["settlement"]), np.array(res["curve"]["q"]) / C, "s:", ms=3,
+                    color=colours.get(res["soil"]), label=f"MPM, {res['soil']}")  # fmt: skip
         ax.set(xlabel="settlement [mm]", ylabel="mean footing pressure q / c")
         ax.legend()
 
@@ -145,15 +226,20 @@ def plot(results, path):
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0].lstrip("# "))
     parser.add_argument("--soil", default="cohesive", choices=["cohesive", "frictional"])
-    parser.add_argument("--quick", action="store_true", help="coarse mesh, few steps")
+    parser.add_argument("--quick", action="store_true", help="coarse meshes, few steps")
     parser.add_argument("--output", type=Path, default=Path("results/footing"))
     args = parser.parse_args()
-    res = (
-        run(args.soil, 12, steps=10, output=args.output) if args.quick else run(args.soil, output=args.output)
-    )
+    res = run(args.soil, 12, steps=10) if args.quick else run(args.soil)
+    mpm = run_mpm(args.soil, h=0.1, ppc=1) if args.quick else run_mpm(args.soil)
+    save(args.output, res, mpm)
     print(
         f"{args.soil}: q_u / c = {res['q_u_over_c']:.3f} "
         f"(N_c = {res['N_c']:.3f}, {100 * res['error']:+.1f} %),"
         f" last steps {100 * res['plateau']:+.2f} %; {res['dofs']} dofs, Newton {res['newton_mean']:.1f} "
         f"mean / {res['newton_max']} max, {res['solve_seconds']:.1f} s"
+    )
+    print(
+        f"MPM: q_u / c = {mpm['q_u_over_c']:.3f} ({100 * mpm['error']:+.1f} %), spread over the last quarter "
+        f"{100 * mpm['plateau_spread']:.1f} %; {mpm['particles']} particles, {mpm['steps']} steps, "
+        f"{mpm['run_seconds']:.1f} s"
     )

@@ -15,6 +15,7 @@ follows the vertical one (compression positive, sigma_h = sigma_zz by symmetry)
 
 import argparse
 import json
+import math
 from pathlib import Path
 
 import dolfin_mpm as dm  # import first: it loads DOLFINx's libraries
@@ -40,8 +41,8 @@ def horizontal_stress(sigma_v):
     return np.where(sigma_v <= sigma_v_yield, K0 * sigma_v, plastic), sigma_v_yield
 
 
-def run(strain=0.03, steps=30, output=None, progress=True):
-    """Compress a 1 m sample by ``strain``; returns the stress path and its error."""
+def run(strain=0.03, steps=30, progress=True):
+    """Compress a 1 m sample by ``strain`` with the FE solver; returns the stress path and its error."""
     msh = mesh.create_rectangle(MPI.COMM_WORLD, [np.zeros(2), np.ones(2)], [2, 2], mesh.CellType.triangle)
     fe = QuasiStatic(msh, SOIL, degree=2)
     side = mesh.locate_entities_boundary(msh, 1, lambda x: np.isclose(x[0], 0.0) | np.isclose(x[0], 1.0))
@@ -77,25 +78,66 @@ def run(strain=0.03, steps=30, output=None, progress=True):
             f"K0: FE {result['K0_fe']:.6f}, exact {K0:.6f}; final ratio {result['K_final_fe']:.4f} -> active "
             f"limit {K_ACTIVE:.4f}; max |sigma_h - exact| / sigma_v,max = {result['error']:.1e}"
         )
-    if output is not None:
-        output = Path(output)
-        output.mkdir(parents=True, exist_ok=True)
-        (output / "oedometer.json").write_text(json.dumps(result, indent=1))
-        plot(result, output / "oedometer.png")
     return result
 
 
-def plot(result, path):
-    """Stress path sigma_h against sigma_v, FE and analytic."""
+def run_mpm(strain=0.03, ppc=4, speed=1e-4, damping=0.1, records=30):
+    """The same sample with the explicit MPM, compressed quasi-statically; returns its stress path.
+
+    A 1 m column on 2 x 2 squares of four triangles; the top nodes move down at ``speed`` times
+    the p-wave speed until the sample is shortened by ``strain``. The stresses are the
+    particle means at ``records`` moments. The MPM's strain is logarithmic, the FE's small:
+    the stress path sigma_h(sigma_v) is the same for both.
+    """
+    msh = mesh.create_rectangle(
+        MPI.COMM_WORLD, [np.zeros(2), np.ones(2)], [2, 2], mesh.CellType.triangle,
+        diagonal=mesh.DiagonalType.crossed,
+    )  # fmt: skip
+    grid = dm.Grid(msh)
+    particles = dm.seed(grid, SOIL, ppc=ppc)
+    v = speed * SOIL.p_wave_speed()
+    bcs = [
+        dm.SlipBC(grid.nodes_where(lambda x: np.isclose(x[0], 0.0) | np.isclose(x[0], 1.0)), normal=(1, 0)),
+        dm.SlipBC(grid.nodes_where(lambda x: np.isclose(x[1], 0.0)), normal=(0, 1)),
+        dm.VelocityBC(grid.nodes_where(lambda x: np.isclose(x[1], 1.0)), velocity=(np.nan, -v)),
+    ]
+    solver = dm.Solver(grid, particles, SOIL, bcs=bcs, damping=damping)
+    every = math.ceil(-np.log(1.0 - strain) / (v * solver.dt) / records)
+    path = {"sigma_v": [0.0], "sigma_h": [0.0]}
+    for k in range(1, every * records + 1):
+        solver.step()
+        if k % every == 0:
+            s = -particles.sigma.mean(axis=0)
+            path["sigma_v"].append(s[1, 1])
+            path["sigma_h"].append(s[0, 0])
+    sigma_v, sigma_h = np.array(path["sigma_v"]), np.array(path["sigma_h"])
+    return {
+        "K0_mpm": float(sigma_h[1] / sigma_v[1]),
+        "K_final_mpm": float(sigma_h[-1] / sigma_v[-1]),
+        "error": float(np.max(np.abs(sigma_h - horizontal_stress(sigma_v)[0])) / sigma_v.max()),
+        "particles": len(particles),
+        "steps": every * records,
+        "path": path,
+    }
+
+
+def save(folder, fe, mpm):
+    """Write both results (JSON) and their plot into ``folder``."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "oedometer.json").write_text(json.dumps({"fe": fe, "mpm": mpm}, indent=1))
+    plot(fe, folder / "oedometer.png", mpm)
+
+
+def plot(result, path, mpm=None):
+    """Stress path sigma_h against sigma_v: FE, MPM and analytic."""
     sv = np.linspace(0.0, max(result["path"]["sigma_v"]), 200)
     with figure(path, figsize=(5, 4)) as ax:
         ax.plot(sv / 1e3, horizontal_stress(sv)[0] / 1e3, "k-", label="K0 branch, then the cone")
-        ax.plot(
-            np.array(result["path"]["sigma_v"]) / 1e3,
-            np.array(result["path"]["sigma_h"]) / 1e3,
-            "o",
-            label="FE",
-        )
+        for res, style, label in ((result, "o", "FE"), (mpm, "x", "MPM")):
+            if res is not None:
+                path_kpa = {k: np.array(v) / 1e3 for k, v in res["path"].items()}
+                ax.plot(path_kpa["sigma_v"], path_kpa["sigma_h"], style, label=label)
         ax.plot(sv / 1e3, K_ACTIVE * sv / 1e3, "k:", label=f"K_a = {K_ACTIVE:.3f}")
         ax.set(xlabel="vertical stress [kPa]", ylabel="horizontal stress [kPa]")
         ax.legend()
@@ -104,4 +146,7 @@ def plot(result, path):
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0].lstrip("# "))
     parser.add_argument("--output", type=Path, default=Path("results/oedometer"))
-    run(output=parser.parse_args().output)
+    fe, mpm = run(), run_mpm()
+    save(parser.parse_args().output, fe, mpm)
+    print(f"MPM: K0 {mpm['K0_mpm']:.6f}; max |sigma_h - exact| / sigma_v,max = {mpm['error']:.1e} "
+          f"({mpm['steps']} steps)")  # fmt: skip

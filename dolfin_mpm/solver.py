@@ -221,18 +221,26 @@ class Solver:
             bc.apply(v)
 
     def _nodal_solve(self, dt: float) -> None:
-        """Nodal velocities at the end of the step from ``M a = F + F_c - R``."""
+        """Nodal velocities at the end of the step from ``M a = F + F_c - R``.
+
+        ``F_c`` is the force the boundary conditions need against ``F - R`` (the reaction).
+        Damping then acts on the out-of-balance force ``F + F_c - R``, so that it neither
+        enters the reaction nor resists the motion a boundary condition prescribes.
+        """
         grid, gdim = self.grid, self.grid.gdim
-        inv_m = self._inv_m
+        inv_m = self._inv_m[:, None]
         m = grid.mass.x.array[:, None]
-        v = grid.momentum.x.array.reshape(-1, gdim) * inv_m[:, None]
+        v = grid.momentum.x.array.reshape(-1, gdim) * inv_m
         f = (grid.f_ext.x.array - grid.f_int.x.array).reshape(-1, gdim)
-        if self.damping > 0.0:
-            f = f - self.damping * np.abs(f) * np.sign(v)
-        v_trial = v + dt * f * inv_m[:, None]
+        v_trial = v + dt * f * inv_m
         v_new = v_trial.copy()
         self._apply_bcs(v_new)
-        grid.f_contact.x.array[:] = (m * (v_new - v_trial) / dt).ravel()
+        f_contact = m * (v_new - v_trial) / dt
+        if self.damping > 0.0:
+            f_out = f + f_contact
+            v_new = v + dt * (f_out - self.damping * np.abs(f_out) * np.sign(v)) * inv_m
+            self._apply_bcs(v_new)
+        grid.f_contact.x.array[:] = f_contact.ravel()
         grid.velocity.x.array[:] = v_new.ravel()
         grid.acceleration.x.array[:] = ((v_new - v) / dt).ravel()
 
@@ -398,6 +406,16 @@ class Solver:
 
     def total_mass(self) -> float:
         return self.comm.allreduce(float(self.particles.mass.sum()), MPI.SUM)
+
+    def reaction(self, nodes: np.ndarray) -> np.ndarray:
+        """Contact force ``F_c`` [N] (per metre in 2D) of the last step on ``nodes``, summed over
+        ranks: the force the boundary conditions there exert on the material, ``shape=(gdim,)``.
+        """
+        gdim = self.grid.gdim
+        nodes = np.asarray(nodes)
+        owned = nodes[nodes < self.grid.num_owned_nodes]
+        f = self.grid.f_contact.x.array.reshape(-1, gdim)[owned].sum(axis=0)
+        return self.comm.allreduce(f, MPI.SUM)
 
     def total_momentum(self) -> np.ndarray:
         P = self.particles
