@@ -5,7 +5,7 @@ PY        := $(VENV)/bin/python
 PY_PYPI   := $(VENV_PYPI)/bin/python
 PYTEST_ARGS ?=
 
-.PHONY: demo test test-pypi test-mpi bench lint setup setup-pypi clean
+.PHONY: demo test test-pypi test-mpi bench lint paraview-check setup setup-pypi clean
 
 $(VENV)/.ready: pyproject.toml scripts/setup-debian.sh
 	bash scripts/setup-debian.sh $(VENV)
@@ -26,6 +26,9 @@ test: $(VENV)/.ready
 
 test-pypi: $(VENV_PYPI)/.ready
 	$(PY_PYPI) -m pytest -q $(PYTEST_ARGS)
+
+paraview-check: $(VENV)/.ready
+	bash scripts/paraview-check.sh $(PY)
 
 bench: $(VENV)/.ready
 	$(PY) benchmarks/step_throughput.py
