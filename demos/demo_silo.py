@@ -61,7 +61,8 @@ def check_geometry(width: float, height: float, outlet: float, h: float) -> None
             raise ValueError(f"h = {h} m must divide the {name} = {length} m into whole cells")
 
 
-def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, height=0.3, outlet=0.1, ppc=4):
+def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, height=0.3, outlet=0.1, ppc=4,
+          comm=MPI.COMM_WORLD):  # fmt: skip
     """The silo on a mesh of ``h`` [m]: solver, sinks and the outlet's gate, before settling.
 
     Args:
@@ -71,6 +72,7 @@ def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, he
         wall_friction: wall and bottom friction angle [degrees], in [0, 90).
         width, height, outlet: silo sizes [m]; the outlet is centred in the bottom.
         ppc: particles per triangle.
+        comm: the communicator the mesh is partitioned over.
 
     Returns:
         ``(solver, gate)``; the gate is a boundary condition in ``solver.bcs``.
@@ -79,9 +81,6 @@ def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, he
     check_geometry(width, height, outlet, h)
     if not 0.0 <= wall_friction < 90.0:
         raise ValueError(f"wall_friction must be in [0, 90) degrees, got {wall_friction}")
-    comm = MPI.COMM_WORLD
-    if comm.size > 1:
-        raise RuntimeError("this demo records and stores particles on one rank; run it serially")
     x0, x1 = 0.5 * (width - outlet), 0.5 * (width + outlet)  # outlet edges
     drop = 0.5 * outlet  # free fall below the outlet down to the catch line
     rows_below = math.ceil(drop / h) + 1
@@ -130,9 +129,9 @@ def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, he
 
 
 def discharged_mass(solver) -> float:
-    """Mass that has passed the outlet plane y = 0: in free fall or in the sink [kg/m]."""
+    """Mass that has passed the outlet plane y = 0: in free fall or in the sink [kg/m], all ranks."""
     P = solver.particles
-    return float(P.mass[P.x[:, 1] < 0.0].sum()) + solver.sinks["discharged"].mass
+    return solver.comm.allreduce(float(P.mass[P.x[:, 1] < 0.0].sum()) + solver.sinks["discharged"].mass)
 
 
 class Monitor:
@@ -183,6 +182,8 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, heig
         the height ``y_c`` over the last fifth of the run, and the run's statistics.
 
     """
+    if MPI.COMM_WORLD.size > 1:
+        raise RuntimeError("this demo records and stores particles on one rank; run it serially")
     for name, value in (("t_end", t_end), ("interval", interval)):
         if not value > 0.0:
             raise ValueError(f"{name} must be > 0 s, got {value!r}")

@@ -32,7 +32,8 @@ class Particles:
     def __init__(self, x, v, mass, volume, sigma=None, material=None, id=None, state=None):
         n = len(mass)
         self.x = np.ascontiguousarray(x, dtype=np.float64).reshape(n, 3)
-        self.v = np.ascontiguousarray(v, dtype=np.float64).reshape(n, -1)
+        v = np.ascontiguousarray(v, dtype=np.float64)
+        self.v = v if v.ndim == 2 else v.reshape(n, -1)  # (0, gdim) stays: a rank may hold none
         self.mass = np.ascontiguousarray(mass, dtype=np.float64)
         self.volume = np.ascontiguousarray(volume, dtype=np.float64)
         self.sigma = np.zeros((n, 3, 3)) if sigma is None else np.array(sigma, dtype=np.float64)

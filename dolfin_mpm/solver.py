@@ -20,6 +20,7 @@ from dolfin_mpm.grid import Grid
 from dolfin_mpm.locate import Basis, basis_at, locate
 from dolfin_mpm.materials import DruckerPragerViscoplastic, Material, check_range
 from dolfin_mpm.nonlocal_average import NonlocalAverage
+from dolfin_mpm.parallel import DistributedAverage, migrate
 from dolfin_mpm.particles import Particles, Sink
 from dolfin_mpm.tensor import det, split_velocity_gradient
 from dolfin_mpm.transfer import gradient, internal_force, interpolate, scatter
@@ -103,6 +104,8 @@ class Solver:
             )
         self.on_exit = on_exit
         self.averaging = None if averaging is None or averaging.is_local else averaging
+        if self.averaging is not None and self.comm.size > 1:
+            self.averaging = DistributedAverage(self.averaging, self.comm)
         if self.averaging is not None and (
             len(self.materials) != 1 or not isinstance(self.materials[0], DruckerPragerViscoplastic)
         ):
@@ -185,6 +188,8 @@ class Solver:
             if sink.region is not None:
                 sink.absorb(P, np.asarray(sink.region(P.x.T), dtype=bool), self.time)
         cells, N = locate(self.grid, P.x, P.cell)
+        if self.comm.size > 1 and migrate(self.grid, P, cells):
+            cells, N = locate(self.grid, P.x, P.cell)
         lost = cells < 0
         if np.any(lost):
             if self.on_exit == "error":
@@ -203,7 +208,7 @@ class Solver:
         P, grid = self.particles, self.grid
         m = grid.assemble(grid.mass, scatter(basis, P.mass, grid.num_nodes))
         grid.assemble(grid.momentum, scatter(basis, P.mass[:, None] * P.v, grid.num_nodes))
-        grid.assemble(grid.f_ext, m[:, None] * self.gravity)
+        grid.f_ext.x.array[:] = (m[:, None] * self.gravity).ravel()  # from the assembled mass
         grid.assemble(grid.f_int, internal_force(basis, P.sigma, P.volume, grid.num_nodes))
         self._inv_m = self._inverse_mass()
 
@@ -408,8 +413,9 @@ class Solver:
         return self.comm.allreduce(float(self.particles.mass.sum()), MPI.SUM)
 
     def reaction(self, nodes: np.ndarray) -> np.ndarray:
-        """Contact force ``F_c`` [N] (per metre in 2D) of the last step on ``nodes``, summed over
-        ranks: the force the boundary conditions there exert on the material, ``shape=(gdim,)``.
+        """Contact force ``F_c`` [N] (per metre in 2D) of the last step on ``nodes``, all ranks.
+
+        The force the boundary conditions there exert on the material, ``shape=(gdim,)``.
         """
         gdim = self.grid.gdim
         nodes = np.asarray(nodes)

@@ -37,12 +37,14 @@ def read(path: Path, field: str):
         reader.UpdatePipeline(max(times) if times else 0.0)
         points = reader.GetDataInformation().GetNumberOfPoints()
         if points == 0 or field not in reader.PointData.keys():
-            sys.exit(f"{path}: {type(reader).__name__} read {points} points, fields {reader.PointData.keys()}")
+            name, fields = type(reader).__name__, reader.PointData.keys()
+            sys.exit(f"{path}: {name} read {points} points, fields {fields}")
         print(f"{path.name}: {type(reader).__name__}, {len(times)} times, {points} points")
     return readers[0]
 
 
 def main():
+    """Read both series, render the chosen moment."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("run", type=Path, help="folder with particles.xdmf and grid.xdmf")
     parser.add_argument("png", type=Path)

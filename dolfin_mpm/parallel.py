@@ -1,0 +1,139 @@
+"""Particles on DOLFINx's mesh partition: each rank holds the particles of the cells it owns.
+
+After the particles move, :func:`migrate` sends every particle that entered a ghost cell to
+that cell's owner (the cell index map knows it) and asks all ranks for the owner of a particle
+that left the local part of the mesh altogether (rare: particles move less than a cell per
+step). Every per-particle array travels, material state included. :class:`Halo` gives each
+rank copies of the other ranks' particles near its own, for the non-local average.
+
+Everything here is collective over the grid's communicator.
+"""
+
+import numpy as np
+
+from dolfin_mpm.grid import Grid
+from dolfin_mpm.locate import locate
+from dolfin_mpm.particles import Particles
+
+__all__ = ["DistributedAverage", "Halo", "cell_owners", "exchange", "migrate"]
+
+
+def cell_owners(grid: Grid) -> np.ndarray:
+    """Rank owning each local cell (owned cells first, then ghosts), ``shape=(num_cells,)``."""
+    index_map = grid.mesh.topology.index_map(grid.tdim)
+    return np.concatenate(
+        [np.full(index_map.size_local, grid.comm.rank, dtype=np.int32), index_map.owners.astype(np.int32)]
+    )
+
+
+def exchange(comm, particles: Particles, dest: np.ndarray) -> int:
+    """Send particle ``k`` to rank ``dest[k]`` (it stays where ``dest[k]`` is this rank).
+
+    Received particles are appended with an unknown cell (``-1``). Returns the number of
+    particles sent from all ranks.
+    """
+    leave = dest != comm.rank
+    total = comm.allreduce(int(leave.sum()))
+    if total == 0:
+        return 0
+    index = np.flatnonzero(leave)
+    send = [None] * comm.size
+    for rank in np.unique(dest[index]):
+        send[rank] = particles.take(index[dest[index] == rank])
+    received = comm.alltoall(send)
+    particles.keep(~leave)
+    for batch in received:
+        if batch is not None:
+            batch.cell[:] = -1
+            particles.extend(batch)
+    return total
+
+
+def _owners_elsewhere(grid: Grid, x: np.ndarray) -> np.ndarray:
+    """Rank whose owned cells hold each point of ``x`` (``(n, 3)``, this rank's), -1 for none."""
+    comm = grid.comm
+    num_owned = grid.mesh.topology.index_map(grid.tdim).size_local
+    claims = []
+    for points in comm.allgather(x):
+        cells, _ = locate(grid, points, np.full(len(points), -1, dtype=np.int32))
+        claims.append((cells >= 0) & (cells < num_owned))
+    claimed = np.array(comm.alltoall(claims), dtype=bool).reshape(comm.size, len(x))
+    return np.where(claimed.any(axis=0), np.argmax(claimed, axis=0), -1)
+
+
+def migrate(grid: Grid, particles: Particles, cells: np.ndarray) -> int:
+    """Move every particle to the rank owning its cell.
+
+    Args:
+        grid: the background grid.
+        particles: this rank's particles; changed in place (order, count). Their ``cell``
+            becomes ``cells`` for those that stay and -1 for those received.
+        cells: each particle's local cell from :func:`~dolfin_mpm.locate.locate`, -1 where
+            it is outside the local mesh, ``shape=(n,)``.
+
+    Returns:
+        The number of particles moved on all ranks. A particle no rank owns (outside the
+        grid) stays where it is, with cell -1.
+
+    """
+    comm = grid.comm
+    dest = np.full(len(cells), comm.rank, dtype=np.int32)
+    found = cells >= 0
+    dest[found] = cell_owners(grid)[cells[found]]
+    lost = np.flatnonzero(~found)
+    if comm.allreduce(lost.size):
+        owner = _owners_elsewhere(grid, particles.x[lost])
+        dest[lost] = np.where(owner >= 0, owner, comm.rank)
+    particles.cell = cells
+    return exchange(comm, particles, dest)
+
+
+class DistributedAverage:
+    """A :class:`~dolfin_mpm.nonlocal_average.NonlocalAverage` over all ranks' particles.
+
+    Each :meth:`update` builds a :class:`Halo` of width ``radius``; the average of this rank's
+    particles then takes in their neighbours on other ranks, as a serial run would.
+    """
+
+    def __init__(self, average, comm):
+        self.average, self.comm = average, comm
+
+    def update(self, x: np.ndarray, volume: np.ndarray, ids: np.ndarray) -> None:
+        self.halo = Halo(self.comm, x, self.average.radius)
+        self.n = len(x)
+        self.average.update(*(np.concatenate([a, self.halo.gather(a)]) for a in (x, volume, ids)))
+
+    def __call__(self, e: np.ndarray) -> np.ndarray:
+        return self.average(np.concatenate([e, self.halo.gather(e)]))[: self.n]
+
+
+class Halo:
+    """Copies of the other ranks' particles within ``margin`` of this rank's particle box.
+
+    Each rank sends the particles that lie inside another rank's bounding box of particles
+    widened by ``margin``; the halo is fixed at construction and :meth:`gather` fetches any
+    per-particle field for it.
+
+    Args:
+        comm: the communicator of the grid.
+        x: this rank's particle positions, ``shape=(n, gdim)``.
+        margin: widening of the boxes [m], >= the averaging radius.
+
+    """
+
+    def __init__(self, comm, x: np.ndarray, margin: float):
+        self.comm = comm
+        box = (x.min(axis=0) - margin, x.max(axis=0) + margin) if len(x) else None
+        boxes = comm.allgather(box)
+        self.send = []  # per rank: indices of the particles it gets
+        for rank, other in enumerate(boxes):
+            if rank == comm.rank or other is None:
+                self.send.append(np.zeros(0, dtype=np.intp))
+            else:
+                self.send.append(np.flatnonzero(np.all((x >= other[0]) & (x <= other[1]), axis=1)))
+        self.size = sum(comm.alltoall([len(s) for s in self.send]))
+
+    def gather(self, values: np.ndarray) -> np.ndarray:
+        """The halo's copies of ``values`` (particle axis first), ``shape=(size, ...)``."""
+        received = self.comm.alltoall([values[s] for s in self.send])
+        return np.concatenate(received) if received else values[:0]

@@ -1,0 +1,109 @@
+"""Particles on DOLFINx's mesh partition; meaningful under ``mpirun -n 2`` (``make test-mpi``),
+and true in serial too."""
+
+import dolfin_mpm as dm
+
+# isort: split
+import numpy as np
+import pytest
+from conftest import rectangle
+from dolfinx import mesh
+from mpi4py import MPI
+from test_demos import load
+
+from dolfin_mpm.locate import locate
+from dolfin_mpm.parallel import DistributedAverage, migrate
+
+comm = MPI.COMM_WORLD
+
+
+def test_migration_moves_particles_to_the_owner_and_keeps_totals():
+    grid = dm.Grid(rectangle((0, 0), (1, 1), (8, 8), "crossed"))
+    mat = dm.LinearElastic(E=1e6, nu=0.3, rho=1000.0)
+    P = dm.seed(grid, mat, ppc=4)
+    P.id = (comm.exscan(len(P)) or 0) + np.arange(len(P))
+    P.v = np.random.default_rng(comm.rank).normal(size=P.v.shape)
+    P.state["tag"] = P.id * 2.0  # state travels with its particle
+    before = [comm.allreduce(a, MPI.SUM) for a in (len(P), P.mass.sum(), (P.mass[:, None] * P.v).sum(0))]
+    # Shift every particle by up to ~3 cells: into ghost cells and beyond the local mesh.
+    shift = np.random.default_rng(7 + comm.rank).uniform(-0.4, 0.4, (len(P), 2))
+    P.x[:, :2] = np.mod(P.x[:, :2] + shift, 1.0)
+    cells, _ = locate(grid, P.x, np.full(len(P), -1, dtype=np.int32))
+    migrate(grid, P, cells)
+    cells, _ = locate(grid, P.x, P.cell)
+    owned = grid.mesh.topology.index_map(2).size_local
+    assert np.all((cells >= 0) & (cells < owned)), "every particle in an owned cell of its rank"
+    after = [comm.allreduce(a, MPI.SUM) for a in (len(P), P.mass.sum(), (P.mass[:, None] * P.v).sum(0))]
+    assert after[0] == before[0]
+    assert after[1] == pytest.approx(before[1], rel=1e-14)
+    assert after[2] == pytest.approx(before[2], rel=1e-12, abs=1e-12)
+    assert np.array_equal(P.state["tag"], P.id * 2.0)
+    ids = np.concatenate(comm.allgather(P.id))
+    assert np.array_equal(np.sort(ids), np.arange(before[0]))
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("weight", ["cubic", "constant", "gaussian"])
+def test_average_with_halo_equals_the_serial_average(dim, weight):
+    rng = np.random.default_rng(3)  # the same cloud on every rank
+    n = 600
+    x, volume, e = rng.uniform(0.0, 1.0, (n, dim)), rng.uniform(0.5, 1.5, n), rng.normal(size=n)
+    ids = np.arange(n)
+    serial = dm.NonlocalAverage(0.15, weight)
+    serial.update(x, volume, ids)
+    expected = serial(e)
+    # This rank's share: a slab in x, an empty rank 1 of 3 when run on 3 ranks or more.
+    mine = np.flatnonzero(np.floor(x[:, 0] * comm.size).astype(int) == comm.rank)
+    if comm.size > 2 and comm.rank == 1:
+        mine = mine[:0]
+    average = DistributedAverage(dm.NonlocalAverage(0.15, weight), comm)
+    average.update(x[mine], volume[mine], ids[mine])
+    assert average(e[mine]) == pytest.approx(expected[mine], rel=1e-12, abs=1e-12)
+
+
+def silo_run(comm, steps=200):
+    """Global measures of a short, coarse non-local silo discharge on ``comm``."""
+    silo = load("demo_silo")
+    solver, gate = silo.build(h=0.025, radius=0.025, comm=comm)
+    solver.bcs = [bc for bc in solver.bcs if bc is not gate]  # open at once: particles cross ranks
+    for _ in range(steps):
+        solver.step()
+    e_bar = solver.particles.state["eps_vp_rate_nonlocal"]
+    return {
+        "particles": solver.num_particles(),
+        "discharged": silo.discharged_mass(solver),
+        "kinetic": solver.energies()["kinetic"],
+        "e_vp_bar_max": comm.allreduce(float(e_bar.max(initial=0.0)), MPI.MAX),
+        "iterations": solver.fixed_point["iterations"],
+    }
+
+
+def test_silo_on_all_ranks_equals_the_serial_run():
+    parallel, serial = silo_run(comm), silo_run(MPI.COMM_SELF)
+    assert parallel["discharged"] > 0.0
+    assert parallel["particles"] == serial["particles"]
+    assert parallel["iterations"] == serial["iterations"]
+    for key in ("discharged", "kinetic", "e_vp_bar_max"):
+        assert parallel[key] == pytest.approx(serial[key], rel=1e-8), key
+
+
+def falling_block(comm, steps=60):
+    """Momentum and energy of a block falling in a corner of the grid (other ranks: empty)."""
+    msh = mesh.create_rectangle(comm, [np.zeros(2), np.ones(2)], [10, 10], mesh.CellType.triangle)
+    grid = dm.Grid(msh)
+    mat = dm.LinearElastic(E=1e5, nu=0.3, rho=1000.0)
+    P = dm.seed(grid, mat, ppc=4, where=lambda x: (x[0] < 0.2) & (x[1] > 0.6) & (x[1] < 0.8))
+    floor = dm.FixedBC(grid.nodes_where(lambda x: np.isclose(x[1], 0.0)))
+    solver = dm.Solver(grid, P, mat, bcs=[floor], gravity=(0.0, -9.81), dt=1e-3)
+    empty = comm.allreduce(int(len(P) == 0))
+    for _ in range(steps):
+        solver.step()
+    return solver.num_particles(), solver.total_momentum(), solver.energies()["total"], empty
+
+
+def test_ranks_without_particles_take_part():
+    (n, p, e, empty), (n1, p1, e1, _) = falling_block(comm), falling_block(MPI.COMM_SELF)
+    assert comm.size == 1 or empty > 0, "the block should leave a rank empty"
+    assert n == n1 > 0
+    assert p == pytest.approx(p1, rel=1e-12)
+    assert e == pytest.approx(e1, rel=1e-12)
