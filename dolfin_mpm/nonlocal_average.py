@@ -9,7 +9,8 @@ molecular dynamics); weights are recomputed on the kept pairs every step. The di
 the pair offsets at the last rebuild plus the displacements since, in single precision: this
 halves the memory traffic of the refresh, the costliest part of the non-local step, and keeps
 the weights to ~1e-6 (the coordinates enter only through the offsets, so the size of the
-domain does not matter).
+domain does not matter). The refresh runs over blocks of pairs small enough for the CPU cache,
+so that its chain of element-wise operations does not stream every intermediate through memory.
 """
 
 from collections.abc import Callable
@@ -21,6 +22,9 @@ from scipy.spatial import cKDTree
 from dolfin_mpm.materials.base import check_range
 
 __all__ = ["WEIGHTS", "NonlocalAverage"]
+
+#: Pairs per block of the weight refresh: its float32 scratch (< 1 MB) stays in cache.
+PAIR_BLOCK = 32768
 
 
 def _cubic(t: np.ndarray, out: np.ndarray) -> np.ndarray:
@@ -83,7 +87,7 @@ class NonlocalAverage:
         # sorts U, its data keeps the order of the pairs.
         order = np.argsort(pairs[:, 0].astype(np.int32), kind="stable")
         i, j = np.ascontiguousarray(pairs.take(order, axis=0).T)
-        offset = np.array([xc.take(i) - xc.take(j) for xc in np.ascontiguousarray(x.T)], dtype=np.float32)
+        offset = (x.take(i, axis=0) - x.take(j, axis=0)).astype(np.float32)
         self._set_pairs(i, j, offset, x.shape[0])
         self._x_built, self._ids = x.copy(), ids.copy()
         self.rebuilds += 1
@@ -93,13 +97,12 @@ class NonlocalAverage:
 
         The weights are symmetric: ``A = U + U^T + I`` with ``U`` the strictly upper triangle,
         whose sparsity stays fixed between rebuilds (only its values change each step).
-        ``offset`` holds ``x_i - x_j`` at the rebuild, ``shape=(gdim, len(i))``.
+        ``offset`` holds ``x_i - x_j`` at the rebuild, ``shape=(len(i), gdim)``.
         """
         # Gathers are fastest with native-size indices; the matrix keeps its own 32-bit copy.
         self._i, self._j, self._offset = i.astype(np.intp), j.astype(np.intp), offset
         indptr = np.r_[0, np.cumsum(np.bincount(self._i, minlength=n))].astype(np.int32)
         self._U = csr_matrix((np.zeros(len(i)), j.astype(np.int32), indptr), shape=(n, n))
-        self._work = np.empty((3, len(i)), dtype=np.float32)  # scratch of the weight refresh
 
     def _drop_removed(self, ids: np.ndarray) -> bool:
         """Keep the pairs of the particles still present, when ``ids`` only lost some, in order."""
@@ -112,7 +115,7 @@ class NonlocalAverage:
         new_index[old] = np.arange(len(ids))
         i, j = new_index[self._i], new_index[self._j]
         both = (i >= 0) & (j >= 0)
-        self._set_pairs(i[both], j[both], self._offset[:, both], len(ids))  # still grouped by i
+        self._set_pairs(i[both], j[both], self._offset[both], len(ids))  # still grouped by i
         self._x_built, self._ids = self._x_built[old], ids.copy()
         return True
 
@@ -131,22 +134,32 @@ class NonlocalAverage:
         if u is None or np.max(np.sum(u * u, axis=1), initial=0.0) > (0.5 * self.skin) ** 2:
             self._rebuild(x, ids)
             u = np.zeros_like(x)
-        u = u.astype(np.float32)
-        s, d, tmp = self._work
-        s.fill(0.0)
-        for c in range(x.shape[1]):
-            uc = np.ascontiguousarray(u[:, c])
-            uc.take(self._i, out=d, mode="clip")  # "clip": valid indices, no buffered copy
-            d -= uc.take(self._j, out=tmp, mode="clip")
-            d += self._offset[c]
-            d *= d
-            s += d
-        np.sqrt(s, out=s)
-        s *= np.float32(1.0 / self.radius)
-        np.minimum(s, 1.0, out=s)
-        self._U.data[:] = self._w(s, d)
+        self._refresh_weights(u.astype(np.float32))
         self._volume = volume
         self._denominator = self._apply(volume)
+
+    def _refresh_weights(self, u: np.ndarray) -> None:
+        """``U``'s values from the displacements ``u`` since the rebuild, ``shape=(n, gdim)`` float32.
+
+        Block by block of pairs: ``s = |offset + u_i - u_j| / r``, ``U_ij = w(min(s, 1))``.
+        """
+        m, gdim = len(self._i), u.shape[1]
+        d_buf, dj_buf = np.empty((2, min(PAIR_BLOCK, m), gdim), dtype=np.float32)
+        s_buf, w_buf = np.empty((2, min(PAIR_BLOCK, m)), dtype=np.float32)
+        inv_r = np.float32(1.0 / self.radius)
+        for a in range(0, m, PAIR_BLOCK):
+            b = min(a + PAIR_BLOCK, m)
+            d, d_j, s = d_buf[: b - a], dj_buf[: b - a], s_buf[: b - a]
+            np.take(u, self._i[a:b], axis=0, out=d, mode="clip")  # "clip": no buffered copy
+            d -= np.take(u, self._j[a:b], axis=0, out=d_j, mode="clip")
+            d += self._offset[a:b]
+            d *= d
+            for c in range(1, gdim):
+                d[:, 0] += d[:, c]
+            np.sqrt(d[:, 0], out=s)
+            s *= inv_r
+            np.minimum(s, 1.0, out=s)
+            self._U.data[a:b] = self._w(s, w_buf[: b - a])
 
     def _apply(self, v: np.ndarray) -> np.ndarray:
         return v + self._U @ v + self._U.T @ v

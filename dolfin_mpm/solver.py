@@ -206,10 +206,10 @@ class Solver:
     def _p2g(self, basis: Basis) -> None:
         """Lumped mass, momentum, external force ``F`` and internal force ``R`` at the nodes."""
         P, grid = self.particles, self.grid
-        m = grid.assemble(grid.mass, scatter(basis, P.mass, grid.num_nodes))
-        grid.assemble(grid.momentum, scatter(basis, P.mass[:, None] * P.v, grid.num_nodes))
+        m = grid.assemble(grid.mass, scatter(basis, P.mass))
+        grid.assemble(grid.momentum, scatter(basis, P.mass[:, None] * P.v))
         grid.f_ext.x.array[:] = (m[:, None] * self.gravity).ravel()  # from the assembled mass
-        grid.assemble(grid.f_int, internal_force(basis, P.sigma, P.volume, grid.num_nodes))
+        grid.assemble(grid.f_int, internal_force(basis, P.sigma, P.volume))
         self._inv_m = self._inverse_mass()
 
     def _inverse_mass(self) -> np.ndarray:
@@ -268,7 +268,7 @@ class Solver:
             v = v_interp
         if self.scheme == "MUSL":
             # Re-mapped momentum goes into `velocity`: `momentum` keeps the step's start.
-            p = grid.assemble(grid.velocity, scatter(basis, P.mass[:, None] * v, grid.num_nodes))
+            p = grid.assemble(grid.velocity, scatter(basis, P.mass[:, None] * v))
             v_grid = p * self._inv_m[:, None]
             self._apply_bcs(v_grid)
             grid.velocity.x.array[:] = v_grid.ravel()
@@ -332,7 +332,7 @@ class Solver:
                     sigma = mat.stress(trial, de, de_bar)
                 volume = P.volume * self._volume_ratio(L, dt)
             with self._stage("p2g"):
-                R = grid.assemble(grid.f_int, internal_force(basis, sigma, volume, grid.num_nodes))
+                R = grid.assemble(grid.f_int, internal_force(basis, sigma, volume))
                 R = R.ravel()[:owned]
                 norms = self.comm.allreduce(np.array([(R - R_in) @ (R - R_in), R @ R]), MPI.SUM)
                 if math.sqrt(norms[0]) <= self.fixed_point_tol * max(math.sqrt(norms[1]), scale_F, 1e-300):

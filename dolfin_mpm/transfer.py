@@ -1,8 +1,9 @@
 """Particle-to-grid and grid-to-particle transfers through the P1 basis (vectorised).
 
 Nodal arrays are ``shape=(num_nodes, k)``; per-particle arrays have the particle axis first;
-the basis is component-first (:class:`dolfin_mpm.locate.Basis`). Loops run over the few
-nodes of a cell and the vector components, never over particles.
+the basis is component-first (:class:`dolfin_mpm.locate.Basis`), with the sparse matrices of
+its values built once per step. Loops run over the few nodes of a cell and the
+vector components, never over particles.
 """
 
 import numpy as np
@@ -13,7 +14,7 @@ from dolfin_mpm.tensor import particle_first
 __all__ = ["gradient", "internal_force", "interpolate", "scatter"]
 
 
-def scatter(basis: Basis, values: np.ndarray, num_nodes: int) -> np.ndarray:
+def scatter(basis: Basis, values: np.ndarray) -> np.ndarray:
     """Local nodal sums ``sum_p N_a(x_p) values_p``.
 
     Args:
@@ -23,17 +24,12 @@ def scatter(basis: Basis, values: np.ndarray, num_nodes: int) -> np.ndarray:
         ``shape=(num_nodes,)`` or ``(num_nodes, k)``.
 
     """
-    idx = basis.dofs.ravel()
     if values.ndim == 1:
-        return np.bincount(idx, (basis.N * values).ravel(), minlength=num_nodes)
-    cols = [
-        np.bincount(idx, (basis.N * values[:, c]).ravel(), minlength=num_nodes)
-        for c in range(values.shape[1])
-    ]
-    return np.stack(cols, axis=1)
+        return basis.to_nodes @ values
+    return np.stack([basis.to_nodes @ values[:, c] for c in range(values.shape[1])], axis=1)
 
 
-def internal_force(basis: Basis, sigma: np.ndarray, volume: np.ndarray, num_nodes: int) -> np.ndarray:
+def internal_force(basis: Basis, sigma: np.ndarray, volume: np.ndarray) -> np.ndarray:
     """Nodal internal forces ``R_a = sum_p V_p sigma_p grad N_a(x_p)``, ``shape=(num_nodes, gdim)``.
 
     Args:
@@ -47,7 +43,7 @@ def internal_force(basis: Basis, sigma: np.ndarray, volume: np.ndarray, num_node
     for i in range(g):
         s = [sigma[:, i, j] * volume for j in range(g)]
         w = sum(s[j] * basis.dN[:, j, :] for j in range(g))  # (gdim+1, n)
-        cols.append(np.bincount(idx, w.ravel(), minlength=num_nodes))
+        cols.append(np.bincount(idx, w.ravel(), minlength=basis.num_nodes))
     return np.stack(cols, axis=1)
 
 
@@ -55,8 +51,7 @@ def interpolate(basis: Basis, nodal: np.ndarray) -> np.ndarray:
     """Values ``sum_a N_a(x_p) nodal_a`` at the particles, ``nodal.shape=(num_nodes, k)`` -> ``(n, k)``."""
     out = np.empty((basis.N.shape[1], nodal.shape[1]))
     for c in range(nodal.shape[1]):
-        comp = np.ascontiguousarray(nodal[:, c])
-        out[:, c] = (basis.N * comp.take(basis.dofs)).sum(axis=0)
+        out[:, c] = basis.to_particles @ np.ascontiguousarray(nodal[:, c])
     return out
 
 

@@ -5,7 +5,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dolfin_mpm.materials.base import Material, check_range
-from dolfin_mpm.tensor import component_first, deviator, jaumann_rotation, particle_first, rotate
+from dolfin_mpm.tensor import component_first, deviator, jaumann_rotate, particle_first
 
 __all__ = ["LinearElastic"]
 
@@ -44,7 +44,7 @@ class LinearElastic(Material):
         return float(np.sqrt((self.K + 4.0 * self.G / 3.0) / self.rho))
 
     def update(self, sigma, d, W, dt, state):
-        sigma = component_first(rotate(sigma, jaumann_rotation(W, dt)))
+        sigma = component_first(jaumann_rotate(sigma, W, dt))
         d = component_first(d)
         sigma += (2.0 * self.G * dt) * d
         lam_dt = (self.K - 2.0 * self.G / 3.0) * dt * (d[0, 0] + d[1, 1] + d[2, 2])
