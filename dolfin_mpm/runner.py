@@ -86,8 +86,9 @@ class Runner:
         self.xdmf_folder = self.folder / xdmf
         self.figures = self.folder / "figures"
         g = s.grid.node_x
-        lo = self.comm.allreduce(g.min(axis=0, initial=np.inf), MPI.MIN)
-        hi = self.comm.allreduce(g.max(axis=0, initial=-np.inf), MPI.MAX)
+        lo, hi = np.empty(3), np.empty(3)
+        self.comm.Allreduce(g.min(axis=0, initial=np.inf), lo, MPI.MIN)
+        self.comm.Allreduce(g.max(axis=0, initial=-np.inf), hi, MPI.MAX)
         self.bounds = (lo, hi)
 
     # -- what happens at output times ----------------------------------------------------------
@@ -229,8 +230,9 @@ class Runner:
         due = self.progress.due()
         if self.comm.size == 1:
             return flag["signum"], due
-        signum, show = self.comm.allreduce(np.array([flag["signum"], int(due)]), MPI.MAX)
-        return int(signum), bool(show)
+        flags = np.empty(2, dtype=np.int64)
+        self.comm.Allreduce(np.array([flag["signum"], int(due)], dtype=np.int64), flags, MPI.MAX)
+        return int(flags[0]), bool(flags[1])
 
 
 def write_run_info(folder: Path, scenario_text: str, info: dict) -> None:
