@@ -96,10 +96,7 @@ def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, he
     P = dm.seed(grid, sand, ppc=ppc, where=lambda x: (x[1] > 0.0) & (x[1] < height))
     # Geostatic stress: sigma_yy = -rho g depth, sigma_xx = sigma_zz = K0 sigma_yy.
     K0 = SAND["nu"] / (1.0 - SAND["nu"])
-    sigma_v = -SAND["rho"] * G * (height - P.x[:, 1])
-    P.sigma[:] = 0.0
-    P.sigma[:, 0, 0] = P.sigma[:, 2, 2] = K0 * sigma_v
-    P.sigma[:, 1, 1] = sigma_v
+    P.sigma = dm.geostatic_stress(P.x, SAND["rho"], G, height, K0)
 
     mu = math.tan(math.radians(wall_friction))
     tol = 1e-9

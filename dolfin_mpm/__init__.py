@@ -11,7 +11,7 @@ from dolfin_mpm.io import Output
 from dolfin_mpm.materials import DruckerPragerViscoplastic, LinearElastic, VonMises
 from dolfin_mpm.nonlocal_average import NonlocalAverage
 from dolfin_mpm.particles import Particles, Sink
-from dolfin_mpm.seeding import seed
+from dolfin_mpm.seeding import geostatic_stress, seed
 from dolfin_mpm.solver import SimulationError, Solver
 
 __version__ = "0.1.0"
@@ -32,5 +32,6 @@ __all__ = [
     "VelocityBC",
     "VonMises",
     "compat",
+    "geostatic_stress",
     "seed",
 ]

@@ -11,11 +11,15 @@ try:  # The PyPI wheels load their MPI/PETSc libraries on this import.
 except ImportError:
     pass
 
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
 import basix
 import dolfinx
 import numpy as np
 import ufl
 from dolfinx import fem, geometry, la
+from dolfinx import mesh as dmesh
 
 __all__ = [
     "DOLFINX_VERSION",
@@ -28,6 +32,7 @@ __all__ = [
     "petsc_vec",
     "quadrature_points",
     "quadrature_space",
+    "read_mesh",
     "scalar_space",
     "scatter_reverse_add",
     "vector_space",
@@ -139,3 +144,49 @@ def scatter_reverse_add(x) -> None:
 def petsc_vec(u):
     """The PETSc Vec that shares memory with the Function ``u``."""
     return u.x.petsc_vec if _NEW else u.vector
+
+
+_MESHIO_CELLS = {2: ("triangle", "triangle"), 3: ("tetra", "tetrahedron")}  # gdim: meshio, DOLFINx
+
+
+def read_mesh(comm, path, gdim: int):
+    """A mesh of affine simplices from a file, partitioned over ``comm``.
+
+    DOLFINx's own XDMF (``.xdmf``, the first uniform grid) is read by DOLFINx; any other
+    format meshio reads (gmsh ``.msh``, VTK, ...) is read on rank 0 with meshio, keeping the
+    cells of dimension ``gdim`` (triangles or tetrahedra) and the first ``gdim`` coordinates.
+
+    Raises:
+        ValueError: the file holds no such cells.
+
+    """
+    path = Path(path)
+    if path.suffix == ".xdmf":
+        grids = ET.parse(path).getroot().iter("Grid")
+        name = next((g.get("Name") for g in grids if g.get("GridType", "Uniform") == "Uniform"), "mesh")
+        from dolfinx.io import XDMFFile
+
+        with XDMFFile(comm, str(path), "r") as f:
+            return f.read_mesh(name=name)
+    meshio_name, cell_name = _MESHIO_CELLS[gdim]
+    cells, x = np.zeros((0, gdim + 1), np.int64), np.zeros((0, gdim))
+    if comm.rank == 0:
+        import meshio
+
+        m = meshio.read(path)
+        blocks = [b.data for b in m.cells if b.type == meshio_name]
+        if blocks:
+            cells = np.concatenate(blocks).astype(np.int64)
+            used = np.unique(cells)  # drop points only lower-dimensional cells use
+            renumber = np.full(len(m.points), -1, dtype=np.int64)
+            renumber[used] = np.arange(len(used))
+            cells, x = renumber[cells], np.ascontiguousarray(m.points[used, :gdim], dtype=np.float64)
+    if comm.bcast(len(cells) == 0, root=0):
+        raise ValueError(f"{path}: no {meshio_name} cells for a mesh of dimension {gdim}")
+    if _NEW:
+        import basix.ufl
+
+        element = basix.ufl.element("Lagrange", cell_name, 1, shape=(gdim,))
+        return dmesh.create_mesh(comm, cells, ufl.Mesh(element), x)
+    domain = ufl.Mesh(ufl.VectorElement("Lagrange", cell_name, 1))
+    return dmesh.create_mesh(comm, cells, x, domain)

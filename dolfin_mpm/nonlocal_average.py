@@ -90,6 +90,7 @@ class NonlocalAverage:
         offset = (x.take(i, axis=0) - x.take(j, axis=0)).astype(np.float32)
         self._set_pairs(i, j, offset, x.shape[0])
         self._x_built, self._ids = x.copy(), ids.copy()
+        self._built_from = (self._x_built, self._ids)  # kept by _drop_removed, for state()
         self.rebuilds += 1
 
     def _set_pairs(self, i: np.ndarray, j: np.ndarray, offset: np.ndarray, n: int) -> None:
@@ -118,6 +119,33 @@ class NonlocalAverage:
         self._set_pairs(i[both], j[both], self._offset[both], len(ids))  # still grouped by i
         self._x_built, self._ids = self._x_built[old], ids.copy()
         return True
+
+    def state(self) -> dict[str, np.ndarray]:
+        """What rebuilds the kept pair list exactly (empty before the first update).
+
+        Positions ``(m, gdim)`` and ids at the last rebuild, the ids now (fewer if particles
+        were removed since) and the rebuild count.
+        """
+        if self._ids is None:
+            return {}
+        x_built, ids_built = self._built_from
+        return {
+            "x_built": x_built,
+            "ids_built": ids_built,
+            "ids": self._ids,
+            "rebuilds": np.array(self.rebuilds),
+        }
+
+    def restore(self, state: dict[str, np.ndarray]) -> None:
+        """Rebuild the pair list of :meth:`state`: same pairs in the same order, bit for bit."""
+        if not state:
+            self._ids = None
+            return
+        self._rebuild(np.ascontiguousarray(state["x_built"]), np.asarray(state["ids_built"]))
+        ids = np.asarray(state["ids"])
+        if not (np.array_equal(ids, self._ids) or self._drop_removed(ids)):
+            raise ValueError("state: the particle ids are not those of the last rebuild minus removed ones")
+        self.rebuilds = int(state["rebuilds"])
 
     def update(self, x: np.ndarray, volume: np.ndarray, ids: np.ndarray) -> None:
         """Weights for the current positions ``x`` (``(n, gdim)``) and volumes ``(n,)``.

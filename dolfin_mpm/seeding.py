@@ -10,7 +10,7 @@ from dolfin_mpm.locate import locate
 from dolfin_mpm.materials.base import Material
 from dolfin_mpm.particles import Particles
 
-__all__ = ["reference_points", "seed"]
+__all__ = ["geostatic_stress", "reference_points", "seed"]
 
 
 def reference_points(tdim: int, ppc: int) -> np.ndarray:
@@ -120,3 +120,29 @@ def seed(
     )
     particles.cell = cells
     return particles
+
+
+def geostatic_stress(
+    x: np.ndarray, rho: float, g: float, surface: float, K0: float, gdim: int = 2
+) -> np.ndarray:
+    """At-rest stress of a layer under gravity along the last axis (y in 2D, z in 3D).
+
+    ``sigma_v = -rho g (surface - x_v)`` vertically and ``K0 sigma_v`` across (and out of
+    plane in 2D), compression negative.
+
+    Args:
+        x: positions [m], ``shape=(n, 3)``.
+        rho: density [kg/m^3]; g: gravity [m/s^2]; surface: height of the free surface [m].
+        K0: at-rest earth pressure ratio (``nu / (1 - nu)`` for an elastic layer).
+        gdim: geometric dimension (2 or 3).
+
+    Returns:
+        The stress [Pa], ``shape=(n, 3, 3)``.
+
+    """
+    vertical = gdim - 1
+    sigma_v = -rho * g * (surface - x[:, vertical])
+    sigma = np.zeros((x.shape[0], 3, 3))
+    for i in range(3):
+        sigma[:, i, i] = sigma_v if i == vertical else K0 * sigma_v
+    return sigma

@@ -1,0 +1,7 @@
+"""``python -m dolfin_mpm``: the ``dolfin-mpm`` command line."""
+
+import sys
+
+from dolfin_mpm.cli import main
+
+sys.exit(main())

@@ -1,0 +1,166 @@
+"""The command line: ``dolfin-mpm run | check | resume`` (also ``python -m dolfin_mpm``).
+
+    dolfin-mpm check demos/silo.toml                    # validate and build, then stop
+    dolfin-mpm run demos/silo.toml --output results/silo --set nonlocal.radius=0
+    dolfin-mpm resume results/silo                      # after Ctrl-C, a kill or a crash
+
+Exit status: 0 done, 1 the run failed (simulation or output), 2 bad input, 128 + signal
+number when stopped by SIGINT or SIGTERM (after writing a checkpoint). Under ``mpirun``
+every rank runs the same command; rank 0 prints.
+"""
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from mpi4py import MPI
+
+from dolfin_mpm import checkpoint, scenario
+from dolfin_mpm.runner import CHECKPOINT, Interrupted, RunError, Runner, print_root, write_run_info
+from dolfin_mpm.solver import SimulationError
+
+__all__ = ["main"]
+
+#: What ``resume --set`` may change: the end time and the output, not the physics.
+RESUMABLE = ("time.end", "output.")
+
+
+def _fail(comm, message: str, code: int) -> int:
+    print_root(comm, f"error: {message}", file=sys.stderr)
+    return code
+
+
+def _scenario_errors(comm, source, e: scenario.ScenarioError) -> int:
+    if len(e.errors) == 1:
+        return _fail(comm, e.errors[0], 2)
+    lines = "\n".join(f"  {line}" for line in e.errors)
+    return _fail(comm, f"{source}: {len(e.errors)} problems\n{lines}", 2)
+
+
+def _summary(sim) -> str:
+    s, cfg = sim.solver, sim.config
+    span = cfg["time"]["end"] - s.time
+    parts = [
+        f"{s.num_particles()} particles", f"{s.grid.comm.allreduce(s.grid.num_owned_nodes)} nodes",
+        f"{len(sim.walls)} walls", f"{len(s.sinks)} sinks", f"dt = {s.dt:.4g} s",
+        f"about {max(0, round(span / s.dt))} steps from t = {s.time:.4g} s to {cfg['time']['end']:g} s",
+    ]  # fmt: skip
+    if s.averaging is not None:
+        parts.append(f"non-local r = {s.averaging.radius:g} m ({s.averaging.weight})")
+    title = f"{cfg['title']}: " if cfg["title"] else ""
+    return title + ", ".join(parts)
+
+
+def _check(args, comm) -> int:
+    try:
+        sim = scenario.build(scenario.load(args.scenario, args.set), comm)
+    except scenario.ScenarioError as e:
+        return _scenario_errors(comm, args.scenario, e)
+    print_root(comm, f"{args.scenario}: OK. {_summary(sim)}")
+    return 0
+
+
+def _run(args, comm) -> int:
+    path = Path(args.scenario)
+    try:
+        cfg = scenario.load(path, args.set)
+    except scenario.ScenarioError as e:
+        return _scenario_errors(comm, path, e)
+    folder = Path(args.output) if args.output else Path("results") / path.stem
+    if (folder / CHECKPOINT).exists() and not args.force:
+        return _fail(comm, f"{folder} holds a run: continue it with `dolfin-mpm resume {folder}`, "
+                     "or start over with --force", 2)  # fmt: skip
+    error = None
+    if comm.rank == 0:
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            (folder / CHECKPOINT).unlink(missing_ok=True)
+            info = {"scenario": str(path.resolve()), "base": str(path.parent.resolve()),
+                    "set": list(args.set), "ranks": comm.size}  # fmt: skip
+            write_run_info(folder, path.read_text(), info)
+        except OSError as e:
+            error = f"cannot write to the output folder {folder} ({e.strerror or e})"
+    error = comm.bcast(error, root=0)
+    if error:
+        return _fail(comm, error, 2)
+    try:
+        sim = scenario.build(cfg, comm)
+    except scenario.ScenarioError as e:
+        return _scenario_errors(comm, path, e)
+    print_root(comm, f"{_summary(sim)}\nwriting to {folder}")
+    return _drive(Runner(sim, folder, progress=not args.quiet), comm, folder)
+
+
+def _resume(args, comm) -> int:
+    folder = Path(args.folder)
+    try:
+        info = json.loads((folder / "run.json").read_text())
+    except (OSError, ValueError) as e:
+        return _fail(comm, f"{folder} is not a run folder: cannot read run.json ({e})", 2)
+    bad = [item for item in args.set if not item.split("=")[0].strip().startswith(RESUMABLE)]
+    if bad:
+        return _fail(comm, f"--set {bad[0]}: a resumed run may change only time.end and output.*", 2)
+    overrides = [*info["set"], *args.set]
+    try:
+        cfg = scenario.load(folder / "scenario.toml", overrides, base=Path(info["base"]))
+        sim = scenario.build(cfg, comm)
+    except scenario.ScenarioError as e:
+        return _scenario_errors(comm, folder / "scenario.toml", e)
+    try:
+        data = checkpoint.read(folder / CHECKPOINT, comm)
+        checkpoint.restore(sim, data)
+    except checkpoint.CheckpointError as e:
+        return _fail(comm, str(e), 2)
+    if args.set and comm.rank == 0:
+        write_run_info(folder, (folder / "scenario.toml").read_text(), {**info, "set": overrides})
+    s = sim.solver
+    print_root(comm, f"resuming {folder} at step {s.step_count}, t = {s.time:.6g} s")
+    return _drive(Runner(sim, folder, history=data["history"], progress=not args.quiet), comm, folder)
+
+
+def _drive(runner: Runner, comm, folder: Path) -> int:
+    s = runner.sim.solver
+    try:
+        runner.run()
+    except Interrupted as e:
+        print_root(comm, f"\n{e} at step {s.step_count}, t = {s.time:.6g} s; checkpoint written. "
+                   f"Continue with: dolfin-mpm resume {folder}")  # fmt: skip
+        return 128 + e.signum
+    except (RunError, checkpoint.CheckpointError, SimulationError) as e:
+        return _fail(comm, str(e), 1)
+    print_root(comm, f"done: t = {s.time:.6g} s after {s.step_count} steps; results in {folder}")
+    return 0
+
+
+def parser() -> argparse.ArgumentParser:
+    """The argument parser of ``dolfin-mpm``."""
+    p = argparse.ArgumentParser(
+        prog="dolfin-mpm", description="Material point simulations from scenario files."
+    )
+    sub = p.add_subparsers(dest="command", required=True)
+    overrides = dict(action="append", default=[], metavar="KEY=VALUE",
+                     help="override a scenario value, e.g. materials.sand.phi=35 (repeatable)")  # fmt: skip
+    quiet = dict(action="store_true", help="no progress display")
+    check = sub.add_parser("check", help="validate a scenario and build it, without running")
+    check.add_argument("scenario")
+    check.add_argument("--set", **overrides)
+    run = sub.add_parser("run", help="run a scenario")
+    run.add_argument("scenario")
+    run.add_argument("--output", help="run folder (default: results/<scenario name>)")
+    run.add_argument("--set", **overrides)
+    run.add_argument("--force", action="store_true", help="start over in a folder that holds a run")
+    run.add_argument("--quiet", **quiet)
+    resume = sub.add_parser("resume", help="continue a run from its last checkpoint")
+    resume.add_argument("folder")
+    resume.add_argument("--set", **{**overrides, "help": "change time.end or output.* (repeatable)"})
+    resume.add_argument("--quiet", **quiet)
+    return p
+
+
+def main(argv=None) -> int:
+    """Run the command line ``argv`` (default ``sys.argv[1:]``); returns the exit status."""
+    args = parser().parse_args(argv)
+    comm = MPI.COMM_WORLD
+    command = {"check": _check, "run": _run, "resume": _resume}[args.command]
+    return command(args, comm)

@@ -1,0 +1,249 @@
+"""Driving a scenario: the time loop with its events, output, checkpoints, figures and progress.
+
+A run folder holds the scenario it ran (``scenario.toml``, ``run.json``), the XDMF series,
+``history.csv`` (time, energies, discharged mass, particle count at each output time),
+``checkpoint.h5`` and ``figures/``. Every decision in the loop depends on the step counter
+and the simulated time only, never on the wall clock, so a run resumed from a checkpoint
+takes exactly the steps the uninterrupted run would have taken.
+"""
+
+import csv
+import json
+import os
+import signal
+import sys
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
+
+from dolfin_mpm import checkpoint
+from dolfin_mpm.figures import field_values, plot_curves, plot_particles
+from dolfin_mpm.io import Output
+from dolfin_mpm.progress import Progress
+from dolfin_mpm.scenario import Simulation
+
+__all__ = ["HISTORY", "Interrupted", "RunError", "Runner"]
+
+#: Columns of the history recorded at each output time.
+HISTORY = ("t", "step", "kinetic", "strain", "potential", "total", "discharged", "particles")
+CHECKPOINT = "checkpoint.h5"
+
+
+class RunError(RuntimeError):
+    """Output that cannot be written (folder gone, disk full); names the file and the last checkpoint."""
+
+
+class Interrupted(Exception):
+    """The run stopped on a signal after writing its checkpoint; ``signum`` names the signal."""
+
+    def __init__(self, signum: int):
+        self.signum = signum
+        super().__init__(f"stopped by {signal.Signals(signum).name}")
+
+
+@contextmanager
+def _catch_signals(flag: dict):
+    """SIGINT and SIGTERM set ``flag["signum"]`` instead of stopping the process."""
+
+    def handler(signum, frame):
+        flag["signum"] = signum
+
+    previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
+
+
+class Runner:
+    """Runs a built scenario in ``folder``, fresh or from a checkpoint.
+
+    Args:
+        sim: the built scenario (restored from a checkpoint when ``history`` is given).
+        folder: the run folder (exists and is writable).
+        history: columns recorded before a checkpoint; ``None`` for a fresh run.
+        progress: show progress on rank 0.
+        stream: where progress goes (default ``sys.stdout``).
+
+    """
+
+    def __init__(self, sim: Simulation, folder, history: dict | None = None, progress=True, stream=None):
+        self.sim, self.folder = sim, Path(folder)
+        self.comm = sim.solver.comm
+        self.root = self.comm.rank == 0
+        self.fresh = history is None
+        self.history = {k: list(history[k]) for k in HISTORY} if history else {k: [] for k in HISTORY}
+        gdim = sim.solver.grid.gdim
+        self.mass_unit, self.energy_unit = ("kg/m", "J/m") if gdim == 2 else ("kg", "J")
+        s, cfg = sim.solver, sim.config
+        self.progress = Progress(
+            cfg["time"]["start"], cfg["time"]["end"], s.dt, stream, progress and self.root, self.mass_unit
+        )
+        xdmf = "." if self.fresh else f"resume-{s.step_count}"
+        self.xdmf_folder = self.folder / xdmf
+        self.figures = self.folder / "figures"
+        g = s.grid.node_x
+        lo, hi = np.empty(3), np.empty(3)
+        self.comm.Allreduce(g.min(axis=0, initial=np.inf), lo, MPI.MIN)
+        self.comm.Allreduce(g.max(axis=0, initial=-np.inf), hi, MPI.MAX)
+        self.bounds = (lo, hi)
+
+    # -- what happens at output times ----------------------------------------------------------
+    def _guard(self, what: str, action) -> None:
+        """Run ``action`` on rank 0; an OSError there becomes a RunError on every rank."""
+        error = None
+        if self.root:
+            try:
+                action()
+            except OSError as e:
+                error = f"writing {what} failed ({e}); {self._last_checkpoint()}"
+        error = self.comm.bcast(error, root=0)
+        if error:
+            raise RunError(error)
+
+    def _last_checkpoint(self) -> str:
+        path = self.folder / CHECKPOINT
+        return f"the last checkpoint {path} is intact" if path.exists() else "no checkpoint was written yet"
+
+    def _record(self) -> None:
+        s = self.sim.solver
+        if self.history["t"] and self.history["t"][-1] == s.time:
+            return
+        e = s.energies()
+        row = (s.time, s.step_count, e["kinetic"], e["strain"], e["potential"], e["total"])
+        row += (self.sim.discharged_mass(), s.num_particles())
+        for k, v in zip(HISTORY, row):
+            self.history[k].append(v)
+        self._guard(self.folder / "history.csv", self._write_history)
+
+    def _write_history(self) -> None:
+        path = self.folder / "history.csv"
+        tmp = path.with_name(path.name + ".tmp")
+        with open(tmp, "w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(HISTORY)
+            w.writerows(zip(*(self.history[k] for k in HISTORY)))
+        os.replace(tmp, path)
+
+    def _snapshot(self) -> None:
+        s, field = self.sim.solver, self.sim.config["output"]["figure_field"]
+        if not self.sim.config["output"]["figures"]:
+            return
+        x = self.comm.gather(s.particles.x, root=0)
+        values = self.comm.gather(field_values(s.particles, field), root=0)
+        path = self.figures / f"particles_{s.step_count:08d}.png"
+
+        def plot():
+            self.figures.mkdir(exist_ok=True)
+            plot_particles(path, np.concatenate(x), np.concatenate(values), field, s.time, self.bounds)
+
+        self._guard(path, plot)
+
+    def _curves(self) -> None:
+        if self.sim.config["output"]["figures"] and len(self.history["t"]) > 1:
+            history = {k: np.array(v) for k, v in self.history.items()}
+
+            def plot():
+                self.figures.mkdir(exist_ok=True)
+                plot_curves(self.figures, history, self.mass_unit, self.energy_unit)
+
+            self._guard(self.figures / "energy.png", plot)
+
+    def _checkpoint(self) -> None:
+        history = {k: np.array(v, dtype=np.float64) for k, v in self.history.items()}
+        checkpoint.write(self.folder / CHECKPOINT, self.sim, history)
+        self._curves()
+
+    # -- the loop --------------------------------------------------------------------------------
+    def run(self) -> None:
+        """Step to the scenario's end time; checkpoint on SIGINT/SIGTERM and raise :class:`Interrupted`.
+
+        Raises:
+            Interrupted: after the checkpoint a signal asked for.
+            RunError: output or checkpoint could not be written.
+            SimulationError: the simulation went bad (what was written stays readable).
+
+        """
+        s, cfg = self.sim.solver, self.sim.config
+        steps = {
+            k: max(1, round(cfg["output"][k] / s.dt))
+            for k in ("interval", "checkpoint_interval", "figure_interval")
+        }
+        output = None
+        if cfg["output"]["xdmf"]:
+            try:
+                output = Output(self.xdmf_folder, self.comm)  # rank 0 opens the files
+            except OSError as e:
+                raise RunError(f"cannot write the XDMF series in {self.xdmf_folder} ({e})") from None
+        flag = {"signum": 0}
+        try:
+            with _catch_signals(flag):
+                if self.fresh:
+                    self._output(output)
+                    self._snapshot()
+                schedule = [(e["time"], k) for k, e in enumerate(cfg["events"]) if k not in self.sim.applied]
+                for t_target, event in [*schedule, (cfg["time"]["end"], None)]:
+                    while (t_target - s.time) / s.dt > 1e-9:
+                        s.step()
+                        n = s.step_count
+                        if n % steps["interval"] == 0:
+                            self._output(output)
+                        if n % steps["figure_interval"] == 0:
+                            self._snapshot()
+                        if n % steps["checkpoint_interval"] == 0:
+                            self._checkpoint()
+                        signum, show = self._poll(flag)
+                        if show:
+                            self.progress.show(s.time, s.num_particles(), self.sim.discharged_mass())
+                        if signum:
+                            self._checkpoint()
+                            raise Interrupted(signum)
+                    if event is not None:
+                        self.sim.apply_event(event)
+                self._output(output)
+                self._snapshot()
+                self._checkpoint()
+                self.progress.show(s.time, s.num_particles(), self.sim.discharged_mass(), final=True)
+        finally:
+            if output is not None:
+                output.close()
+
+    def _output(self, output) -> None:
+        self._record()
+        if output is not None:
+            try:
+                output.write(self.sim.solver)  # collective; only rank 0 writes
+            except OSError as e:
+                message = (
+                    f"writing the XDMF series in {self.xdmf_folder} failed ({e}); {self._last_checkpoint()}"
+                )
+                if self.comm.size > 1:  # the other ranks are past the write: stop them all
+                    print(f"error: {message}", file=sys.stderr, flush=True)
+                    self.comm.Abort(1)
+                raise RunError(message) from None
+
+    def _poll(self, flag: dict) -> tuple[int, bool]:
+        """The signal to stop on and whether to refresh the progress, the same on every rank."""
+        due = self.progress.due()
+        if self.comm.size == 1:
+            return flag["signum"], due
+        flags = np.empty(2, dtype=np.int64)
+        self.comm.Allreduce(np.array([flag["signum"], int(due)], dtype=np.int64), flags, MPI.MAX)
+        return int(flags[0]), bool(flags[1])
+
+
+def write_run_info(folder: Path, scenario_text: str, info: dict) -> None:
+    """Store the scenario text and how it was run (``run.json``) in ``folder``, atomically."""
+    for name, text in (("scenario.toml", scenario_text), ("run.json", json.dumps(info, indent=1))):
+        tmp = folder / f"{name}.tmp"
+        tmp.write_text(text)
+        os.replace(tmp, folder / name)
+
+
+def print_root(comm, *args, file=sys.stdout) -> None:
+    """``print`` on rank 0 only."""
+    if comm.rank == 0:
+        print(*args, file=file, flush=True)

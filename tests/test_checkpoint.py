@@ -1,0 +1,228 @@
+"""Checkpoints: a run stopped by SIGINT, SIGTERM or SIGKILL and resumed ends bit for bit where
+the uninterrupted run ends; a failed checkpoint write leaves the last one intact."""
+
+import errno
+import io
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import dolfin_mpm  # noqa: F401  (first: loads DOLFINx's libraries)
+
+# isort: split
+import h5py
+import numpy as np
+import pytest
+
+from dolfin_mpm import NonlocalAverage, checkpoint
+from dolfin_mpm.cli import main
+from dolfin_mpm.progress import Progress
+
+# Sand falls through a plate that opens at t = 5 ms into a sink: non-local averaging with
+# kept pairs, particles leaving, an event; about 330 steps.
+SCENARIO = """
+[mesh]
+shape = "rectangle"
+lower = [0.0, 0.0]
+upper = [0.1, 0.12]
+cells = [10, 12]
+
+[materials.sand]
+model = "drucker_prager"
+E = 1e6
+nu = 0.3
+rho = 1500.0
+phi = 30.0
+gamma = 1e3
+
+[nonlocal]
+radius = 0.01
+
+[bodies.block]
+material = "sand"
+region = { min = [0.02, 0.05], max = [0.08, 0.1] }
+velocity = [0.0, "-1.0 - 10 * (x - 0.05)"]
+
+[walls.sides]
+type = "slip"
+region = [{ min = [0.0, 0.0], max = [0.0, 0.12] }, { min = [0.1, 0.0], max = [0.1, 0.12] }]
+normal = [1.0, 0.0]
+
+[walls.plate]
+type = "frictional"
+region = { min = [0.0, 0.04], max = [0.1, 0.04] }
+normal = [0.0, -1.0]
+friction_angle = 20.0
+
+[sinks.below]
+region = { min = [-inf, -inf], max = [inf, 0.02] }
+
+[solver]
+gravity = [0.0, -9.81]
+
+[time]
+end = 0.04
+
+[[events]]
+time = 0.005
+remove_walls = ["plate"]
+
+[output]
+interval = 0.002
+checkpoint_interval = 0.004
+figures = false
+"""
+
+
+def state(folder: Path) -> dict:
+    """Everything in a checkpoint but the history, flattened."""
+    out = {}
+    with h5py.File(folder / "checkpoint.h5", "r") as f:
+        out.update({f"attrs/{k}": np.asarray(v) for k, v in f.attrs.items()})
+        f["rank0"].visititems(
+            lambda name, d: out.update({name: d[()]}) if isinstance(d, h5py.Dataset) else None
+        )
+    return out
+
+
+def assert_same(a: dict, b: dict) -> None:
+    assert a.keys() == b.keys()
+    for k in a:
+        assert a[k].dtype == b[k].dtype and np.array_equal(a[k], b[k]), k
+
+
+@pytest.fixture(scope="module")
+def scenario_file(tmp_path_factory):
+    path = tmp_path_factory.mktemp("scenario") / "fall.toml"
+    path.write_text(SCENARIO)
+    return path
+
+
+@pytest.fixture(scope="module")
+def reference(scenario_file):
+    """The uninterrupted run."""
+    folder = scenario_file.parent / "reference"
+    assert main(["run", str(scenario_file), "--output", str(folder), "--quiet"]) == 0
+    s = state(folder)
+    # The run exercises what carries state across a restart.
+    assert s["sinks/below/count"] > 0 and s["nonlocal/rebuilds"] > 1
+    return s
+
+
+def test_resume_after_a_finished_shorter_run_is_bit_identical(scenario_file, reference, tmp_path):
+    folder = tmp_path / "run"
+    assert (
+        main(["run", str(scenario_file), "--output", str(folder), "--quiet", "--set", "time.end=0.023"]) == 0
+    )
+    assert main(["resume", str(folder), "--quiet", "--set", "time.end=0.04"]) == 0
+    assert_same(state(folder), reference)
+
+
+def _start(*args):
+    return subprocess.Popen(
+        [sys.executable, "-m", "dolfin_mpm", *args, "--quiet"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
+
+def _step_of(path: Path) -> int:
+    try:
+        with h5py.File(path, "r") as f:
+            return int(f.attrs["step"])
+    except (OSError, KeyError):
+        return -1
+
+
+def _stop_after_checkpoint(proc, folder: Path, after: int, signum: int) -> int:
+    """Send ``signum`` once a checkpoint later than step ``after`` exists; the checkpoint's step."""
+    deadline = time.monotonic() + 120
+    while _step_of(folder / "checkpoint.h5") <= after:
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < deadline
+        time.sleep(0.01)
+    step = _step_of(folder / "checkpoint.h5")
+    proc.send_signal(signum)
+    return step
+
+
+def test_sigint_sigterm_sigkill_and_resume_end_where_the_uninterrupted_run_ends(
+    scenario_file, reference, tmp_path
+):
+    folder = tmp_path / "run"
+    # Ctrl-C: a final checkpoint, a clean exit with 128 + SIGINT.
+    proc = _start("run", str(scenario_file), "--output", str(folder))
+    _stop_after_checkpoint(proc, folder, 0, signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 128 + signal.SIGINT, err
+    assert "stopped by SIGINT" in out and "dolfin-mpm resume" in out and "Traceback" not in err
+    interrupted = _step_of(folder / "checkpoint.h5")
+    # SIGTERM likewise, after resuming.
+    proc = _start("resume", str(folder))
+    _stop_after_checkpoint(proc, folder, interrupted, signal.SIGTERM)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 128 + signal.SIGTERM, err
+    # SIGKILL: no chance to write anything; the last periodic checkpoint stays.
+    proc = _start("resume", str(folder))
+    killed_at = _stop_after_checkpoint(proc, folder, _step_of(folder / "checkpoint.h5"), signal.SIGKILL)
+    proc.communicate(timeout=60)
+    assert proc.returncode == -signal.SIGKILL
+    assert _step_of(folder / "checkpoint.h5") >= killed_at < reference["attrs/step"]
+    assert not (folder / "checkpoint.h5.tmp").exists() or _step_of(folder / "checkpoint.h5") > 0
+    assert main(["resume", str(folder), "--quiet"]) == 0
+    assert_same(state(folder), reference)
+
+
+def test_a_failed_checkpoint_write_keeps_the_last_one(scenario_file, tmp_path, monkeypatch, capsys):
+    folder = tmp_path / "run"
+    write_tree = checkpoint._write_tree
+
+    def disk_full_after_the_first(group, tree):
+        if group.name == "/history" and (folder / "checkpoint.h5").exists():
+            raise OSError(errno.ENOSPC, "No space left on device")
+        write_tree(group, tree)
+
+    monkeypatch.setattr(checkpoint, "_write_tree", disk_full_after_the_first)
+    assert (
+        main(["run", str(scenario_file), "--output", str(folder), "--quiet", "--set", "output.xdmf=false"])
+        == 1
+    )
+    err = capsys.readouterr().err
+    assert "No space left on device" in err and "the previous checkpoint is intact" in err
+    assert _step_of(folder / "checkpoint.h5") > 0 and not (folder / "checkpoint.h5.tmp").exists()
+
+
+def test_nonlocal_state_restores_the_kept_pairs_after_removals():
+    """Pairs kept since a rebuild, minus absorbed particles: restored in the same order."""
+    rng = np.random.default_rng(1)
+    x, volume, ids = rng.random((400, 2)), rng.random(400), np.arange(400)
+    avg = NonlocalAverage(0.1)
+    avg.update(x, volume, ids)
+    keep = rng.random(400) > 0.2  # a sink takes some
+    x = x[keep] + 1e-4 * rng.standard_normal((keep.sum(), 2))  # within the skin: pairs kept
+    avg.update(x, volume[keep], ids[keep])
+    restored = NonlocalAverage(0.1)
+    restored.restore(avg.state())
+    assert len(avg.state()["ids"]) < len(avg.state()["ids_built"])
+    x = x + 1e-4 * rng.standard_normal(x.shape)
+    e = rng.random(len(x))
+    for a in (avg, restored):
+        a.update(x, volume[keep], ids[keep])
+    assert np.array_equal(avg(e), restored(e)) and avg.rebuilds == restored.rebuilds == 1
+
+
+def test_progress_bar_on_a_terminal_and_log_lines_elsewhere():
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    for stream, tty in ((Terminal(), True), (io.StringIO(), False)):
+        p = Progress(0.0, 1.0, 0.01, stream=stream, mass_unit="kg/m")
+        p.due()
+        p.show(0.5, 1234, 2.5)
+        text = stream.getvalue()
+        assert "t = 5.0000e-01 s" in text and "particles 1234" in text and "discharged 2.5 kg/m" in text
+        assert ("[##########----------]  50.0%" in text) == tty and text.startswith("\r") == tty

@@ -1,0 +1,187 @@
+"""Scenario files: validation that reports every problem with its TOML path, building, the CLI."""
+
+import importlib.util
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import dolfin_mpm  # noqa: F401  (first: loads DOLFINx's libraries)
+
+# isort: split
+import meshio
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from dolfin_mpm import scenario
+from dolfin_mpm.cli import main
+from dolfin_mpm.runner import Runner
+
+ROOT = Path(__file__).parents[1]
+DEMOS = ROOT / "demos"
+
+BAD = """
+[mesh]
+shape = "rectangle"
+lower = [0.0, 0.0]
+upper = [1.0, "top"]
+cells = [4, 4]
+colour = "red"
+
+[materials.sand]
+model = "drucker_prager"
+E = 1e6
+rho = 1500.0
+phi = 120
+gamma = 1e3
+
+[bodies.block]
+material = "clay"
+ppc = 3
+
+[walls.floor]
+type = "frictional"
+region = { min = [0.0, 0.0], max = [1.0, 0.0] }
+normal = [0.0, -1.0]
+friction_angle = 95.0
+
+[time]
+end = -1.0
+
+[[events]]
+time = 0.0
+remove_walls = ["gate"]
+"""
+
+
+def test_every_problem_is_reported_with_its_toml_path(tmp_path):
+    (tmp_path / "bad.toml").write_text(BAD)
+    with pytest.raises(scenario.ScenarioError) as info:
+        scenario.load(tmp_path / "bad.toml")
+    errors = info.value.errors
+    expected = [
+        "mesh.colour: unknown key (allowed: shape, lower, upper, cells, diagonal)",
+        'mesh.upper: must be an array of 2 numbers, got [1.0, "top"]',
+        "materials.sand.nu: missing (must be in (-1, 0.5))",
+        "materials.sand.phi: must be in (0, 90) degrees, got 120",
+        'bodies.block.material: must be one of "sand", got "clay"',
+        "bodies.block.ppc: must be a square number (1, 4, 9, ...) on triangles, got 3",
+        "walls.floor.friction_angle: must be in [0, 90) degrees, got 95.0",
+        "time.end: must be > 0 s, got -1.0",
+        'events[0].remove_walls: no wall named "gate" (walls: floor)',
+    ]
+    assert sorted(errors) == sorted(expected)
+
+
+def test_malformed_toml_gives_line_and_column(tmp_path):
+    (tmp_path / "broken.toml").write_text('[mesh]\nshape = "rectangle"\nlower = [0.0; 0.0]\n')
+    with pytest.raises(scenario.ScenarioError, match=r"broken.toml: .*line 3, column 13"):
+        scenario.load(tmp_path / "broken.toml")
+
+
+def test_overrides_are_toml_values_or_words():
+    data = {"materials": {"sand": {"phi": 30.0}}}
+    scenario.apply_overrides(data, ["materials.sand.phi=35", "nonlocal.weight=gaussian", "mesh.cells=[4, 5]"])
+    assert data == {
+        "materials": {"sand": {"phi": 35}}, "nonlocal": {"weight": "gaussian"}, "mesh": {"cells": [4, 5]}
+    }  # fmt: skip
+    with pytest.raises(scenario.ScenarioError, match=r"expected key\.path=value"):
+        scenario.apply_overrides(data, ["nonsense"])
+    with pytest.raises(scenario.ScenarioError, match=r"materials\.sand\.phi is not a table"):
+        scenario.apply_overrides(data, ["materials.sand.phi.x=1"])
+
+
+@pytest.mark.parametrize("name", ["silo", "elastic_bar", "column_collapse"])
+def test_shipped_examples_build(name):
+    sim = scenario.build(scenario.load(DEMOS / f"{name}.toml"))
+    assert sim.solver.num_particles() > 0
+    assert all(len(w.nodes) for w in sim.walls.values())
+
+
+def test_a_wall_that_holds_no_node_is_named(tmp_path):
+    text = (DEMOS / "elastic_bar.toml").read_text()
+    (tmp_path / "s.toml").write_text(text)
+    cfg = scenario.load(
+        tmp_path / "s.toml", ["walls.clamp.region.min=[2.0, 0.0]", "walls.clamp.region.max=[2.0, 1.0]"]
+    )
+    with pytest.raises(scenario.ScenarioError, match=r"^walls.clamp.region: holds no grid nodes$"):
+        scenario.build(cfg)
+
+
+def _load_demo(name):
+    spec = importlib.util.spec_from_file_location(name, DEMOS / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_silo_scenario_is_the_silo_demo(tmp_path):
+    """The silo file, coarsened with --set, takes the demo's steps bit for bit (settling, opening)."""
+    h, r = 0.025, 0.02
+    rows = math.ceil(0.05 / h) + 1  # as the demo lays out its grid
+    reference = _load_demo("demo_silo").run(h=h, radius=r, t_end=0.02, t_settle=0.01, progress=False)
+    overrides = [
+        f"mesh.lower=[0.0, {-rows * h!r}]", f"mesh.upper=[0.2, {0.3 + h!r}]",
+        f"mesh.cells=[8, {rows + 13}]", f"nonlocal.radius={r}", "time.start=-0.01", "time.end=0.02",
+        "output.xdmf=false", "output.figures=false",
+    ]  # fmt: skip
+    sim = scenario.build(scenario.load(DEMOS / "silo.toml", overrides))
+    Runner(sim, tmp_path, progress=False).run()
+    P = sim.solver.particles
+    assert sim.solver.step_count == reference["steps"]
+    assert np.array_equal(P.x[:, :2], reference["x"])
+    assert np.array_equal(P.state["eps_vp_rate_nonlocal"], reference["e_vp_bar"])
+    assert [id(bc) for bc in sim.solver.bcs] == [id(sim.walls[k]) for k in ("left", "right", "bottom")]
+
+
+def test_mesh_files_gmsh_and_xdmf(tmp_path):
+    from dolfinx import io, mesh
+
+    pts = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0.5, 0.5, 0]], float)
+    tri = np.array([[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]])
+    meshio.write(
+        tmp_path / "square.msh",
+        meshio.Mesh(pts, [("line", np.array([[0, 1]])), ("triangle", tri)]),
+        file_format="gmsh22",
+    )
+    msh = mesh.create_rectangle(MPI.COMM_WORLD, [np.zeros(2), np.ones(2)], [3, 3], mesh.CellType.triangle)
+    with io.XDMFFile(MPI.COMM_WORLD, str(tmp_path / "square.xdmf"), "w") as f:
+        f.write_mesh(msh)
+    text = (DEMOS / "elastic_bar.toml").read_text().split("[materials.bar]")[1]
+    for name, cells in (("square.msh", 4), ("square.xdmf", 18)):
+        head = f'[mesh]\nshape = "file"\nfile = "{name}"\n\n[materials.bar]'
+        (tmp_path / "s.toml").write_text(head + text)
+        cfg = scenario.load(
+            tmp_path / "s.toml",
+            ["bodies.bar.region.max=[1.0, 1.0]", "walls.rollers.region=[{min=[0,0],max=[1,0]}]"],
+        )
+        sim = scenario.build(cfg)
+        assert sim.solver.comm.allreduce(sim.solver.grid.num_cells) == cells
+        assert sim.solver.num_particles() == 4 * cells
+
+
+def _cli(*args, cwd=None):
+    return subprocess.run(
+        [sys.executable, "-m", "dolfin_mpm", *args], capture_output=True, text=True, cwd=cwd, timeout=300
+    )
+
+
+def test_cli_check_reports_problems_without_a_traceback(tmp_path):
+    (tmp_path / "bad.toml").write_text(BAD)
+    r = _cli("check", str(tmp_path / "bad.toml"))
+    assert r.returncode == 2
+    assert "materials.sand.phi: must be in (0, 90) degrees, got 120" in r.stderr
+    assert "Traceback" not in r.stderr
+    (tmp_path / "broken.toml").write_text("[mesh\n")
+    r = _cli("check", str(tmp_path / "broken.toml"))
+    assert r.returncode == 2 and "line 1, column 6" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_run_refuses_an_unwritable_folder(tmp_path, capsys):
+    (tmp_path / "file").write_text("")
+    code = main(
+        ["run", str(DEMOS / "elastic_bar.toml"), "--output", str(tmp_path / "file" / "run"), "--quiet"]
+    )
+    assert code == 2
+    assert f"cannot write to the output folder {tmp_path / 'file' / 'run'}" in capsys.readouterr().err
