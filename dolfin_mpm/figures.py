@@ -26,7 +26,7 @@ def field_values(particles, name: str) -> np.ndarray:
         return getattr(P, name)
     if name in ("vx", "vy", "vz"):
         return P.v[:, "xyz".index(name[1])]
-    return P.state[name].reshape(len(P), -1)[:, 0] if name in P.state else np.zeros(len(P))
+    return P.state[name].reshape(len(P), -1)[:, 0] if name in P.state and len(P) else np.zeros(len(P))
 
 
 def plot_particles(path: Path, x: np.ndarray, values: np.ndarray, field: str, t: float, bounds) -> None:

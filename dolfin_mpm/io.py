@@ -76,7 +76,7 @@ class XDMFSeries:
         geom = ET.SubElement(grid, "Geometry", GeometryType="XYZ")
         self._item(geom, f"{mesh_group}/x", points)
         for name, values in fields.items():
-            values = values.reshape(len(points), -1)
+            values = values.reshape(len(points), int(np.prod(values.shape[1:])))
             attr = ET.SubElement(
                 grid,
                 "Attribute",
@@ -129,7 +129,8 @@ class Output:
             "velocity": _pad3(P.v), "stress": P.sigma.reshape(-1, 9), "p": p, "q": q,
             "mass": P.mass, "volume": P.volume, "id": P.id.astype(np.float64),
         }  # fmt: skip
-        fields.update({name: a.reshape(len(P), -1) for name, a in P.state.items()})
+        # Explicit widths: a rank may hold no particles.
+        fields.update({name: a.reshape(len(P), int(np.prod(a.shape[1:]))) for name, a in P.state.items()})
         x = _gather(comm, P.x)
         fields = {name: _gather(comm, a) for name, a in fields.items()}
         if comm.rank == 0:

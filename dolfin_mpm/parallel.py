@@ -106,6 +106,11 @@ class DistributedAverage:
     def __call__(self, e: np.ndarray) -> np.ndarray:
         return self.average(np.concatenate([e, self.halo.gather(e)]))[: self.n]
 
+    def __getattr__(self, name):
+        # radius, weight, rebuilds, state(), restore(): the wrapped average's (its pair list is
+        # this rank's; the halo is rebuilt at every update).
+        return getattr(self.average, name)
+
 
 class Halo:
     """Copies of the other ranks' particles within ``margin`` of this rank's particle box.
