@@ -11,11 +11,15 @@ capacity q_u = N_c c:
 - frictional soil, phi = 30 deg, with the paper's Drucker–Prager cone
   q = m (p + c cot phi) and non-associated g = q (rate-independent limit): compared with the
   Mohr–Coulomb N_c = (N_q - 1) cot phi = 30.14, N_q = exp(pi tan phi) tan^2(45 + phi/2),
-  which assumes associated flow; the plastically incompressible g = q gives less.
+  which assumes associated flow; the plastically incompressible g = q gives less;
+- frictional-associated: the Drucker–Prager cone matched to Mohr–Coulomb in plane strain with
+  associated flow (:class:`MohrCoulombDruckerPrager`, M = 0.832 at 30 deg), whose collapse load
+  is Mohr–Coulomb's: N_c = 30.14.
 
 The mesh is graded towards the footing edge, where the stresses are singular.
 
-    python demos/demo_footing.py [--soil cohesive|frictional] [--quick] [--output results/footing]
+    python demos/demo_footing.py [--soil cohesive|frictional|frictional-associated] [--quick]
+        [--output results/footing]
 """
 
 import argparse
@@ -35,18 +39,23 @@ from dolfin_mpm.plotting import figure
 B, L = 1.0, 5.0  # footing width, size of the half model [m]
 C, E, NU = 100e3, 100e6, 0.3  # cohesion [Pa], soil stiffness
 PHI = 30.0  # friction angle of the frictional soil [deg]
+SOILS = ("cohesive", "frictional", "frictional-associated")
+SETTLEMENT = {"cohesive": 0.05, "frictional": 0.3, "frictional-associated": 0.3}  # to collapse [m]
 
 
 def soil(kind):
     """The soil model and its analytical bearing-capacity factor N_c."""
     if kind == "cohesive":
         return dm.VonMises(E=E, nu=NU, rho=1.0, sigma_y=np.sqrt(3.0) * C), 2.0 + np.pi
-    if kind == "frictional":
+    if kind in ("frictional", "frictional-associated"):
         t = np.tan(np.radians(PHI))
         n_q = np.exp(np.pi * t) * np.tan(np.radians(45.0 + PHI / 2.0)) ** 2
-        mat = dm.DruckerPragerViscoplastic(E=E, nu=NU, rho=1.0, phi=PHI, gamma=np.inf, c=C)
+        if kind == "frictional":
+            mat = dm.DruckerPragerViscoplastic(E=E, nu=NU, rho=1.0, phi=PHI, gamma=np.inf, c=C)
+        else:
+            mat = dm.MohrCoulombDruckerPrager(E=E, nu=NU, rho=1.0, phi=PHI, c=C)
         return mat, (n_q - 1.0) / t
-    raise ValueError(f"soil must be 'cohesive' or 'frictional', got {kind!r}")
+    raise ValueError(f"soil must be one of {SOILS}, got {kind!r}")
 
 
 def graded(n, length, at, fine):
@@ -74,9 +83,11 @@ def half_space(n, fine):
     return msh
 
 
-def run(kind="cohesive", n=32, settlement=0.05, steps=25, output=None, progress=True):
-    """Push the footing down by ``settlement`` [m]; returns the load–settlement curve and q_u."""
+def run(kind="cohesive", n=32, settlement=None, steps=25, output=None, progress=True):
+    """Push the footing down by ``settlement`` [m] (default ``SETTLEMENT[kind]``); returns the
+    load–settlement curve and q_u."""
     material, n_c = soil(kind)
+    settlement = SETTLEMENT[kind] if settlement is None else settlement
     msh = half_space(n, fine=0.02 * B)
     fe = QuasiStatic(msh, material, degree=2)
     tol = 1e-9
@@ -144,7 +155,7 @@ def plot(results, path):
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0].lstrip("# "))
-    parser.add_argument("--soil", default="cohesive", choices=["cohesive", "frictional"])
+    parser.add_argument("--soil", default="cohesive", choices=SOILS)
     parser.add_argument("--quick", action="store_true", help="coarse mesh, few steps")
     parser.add_argument("--output", type=Path, default=Path("results/footing"))
     args = parser.parse_args()
