@@ -141,3 +141,53 @@ def test_isochoric_flow_is_the_rate_independent_paper_model_with_slope_m():
 def test_bad_parameters(kwargs, name):
     with pytest.raises(ValueError, match=rf"^{name} must be in"):
         MohrCoulombDruckerPrager(**ELASTIC, **kwargs)
+
+
+def plane_strain_flow_tangent(mat, m, M_g, p=5e4):
+    """Consistent tangent (plane components xx, yy, sqrt2 xy) of a small step of plane-strain flow
+    from a point on the cone ``q = m (p + c cot phi)`` whose flow has ``de_zz^p = 0``."""
+    a = mat.tension_limit
+    q = m * (p + a)
+    d = -M_g * q / 3.0  # s_zz = 2 d / 3 = -(2/9) M_g q makes dg/dsigma_zz vanish
+    t = np.sqrt(q * q / 3.0 - d * d / 3.0)
+    sigma = np.diag([t - d / 3.0 - p, -t - d / 3.0 - p, 2.0 * d / 3.0 - p])[None]
+    assert invariants(sigma)[1][0] == pytest.approx(q, rel=1e-12)
+    deps = np.zeros((1, 6))
+    deps[0, [0, 1]] = 1e-9 * np.array([1.0, -1.0])  # loading: shear in the flow's own axes
+    trial = mat.trial(sigma, from_mandel(deps), np.zeros_like(sigma), 1.0)
+    if isinstance(mat, MohrCoulombDruckerPrager):
+        inc = mat.increment(trial)
+        D = mat.tangent(trial, inc)
+    else:
+        inc = mat.increment(trial, 1.0)
+        D = mat.tangent(trial, inc, 1.0)
+    assert 0.0 < inc[0] < np.inf  # a plastic step on the cone
+    return D[0][np.ix_([0, 1, 5], [0, 1, 5])]
+
+
+def uniqueness_and_ellipticity(D, G):
+    """Min eigenvalue of sym(D) / G and min over directions of det(acoustic tensor) / G^2."""
+    second_order_work = np.linalg.eigvalsh(0.5 * (D + D.T)).min() / G
+    dets = []
+    for angle in np.linspace(0.0, np.pi, 721):
+        n1, n2 = np.cos(angle), np.sin(angle)
+        # Mandel plane strain of grad u = v x n is N v
+        N = np.array([[n1, 0.0], [0.0, n2], [n2 / np.sqrt(2), n1 / np.sqrt(2)]])
+        dets.append(np.linalg.det(N.T @ D @ N))
+    return second_order_work, min(dets) / G**2
+
+
+def test_non_associated_flow_loses_uniqueness_and_ellipticity_the_associated_cone_does_not():
+    """Why Newton cannot find a collapse load with g = q: a flowing point's tangent has an
+    indefinite symmetric part (negative second-order work) and a negative acoustic determinant
+    (a band can form) in plane strain; with associated flow both are zero at worst."""
+    associated, isochoric = material(None), material(0.0)
+    paper = DruckerPragerViscoplastic(**ELASTIC, phi=30.0, gamma=np.inf, c=10e3)
+    G = associated.G
+    D = plane_strain_flow_tangent(associated, associated.M, associated.M_g)
+    w, det = uniqueness_and_ellipticity(D, G)
+    assert w > -1e-6 and det > -1e-6
+    w, det = uniqueness_and_ellipticity(plane_strain_flow_tangent(isochoric, isochoric.M, 0.0), G)
+    assert w < -0.2 and det < -0.1
+    w, det = uniqueness_and_ellipticity(plane_strain_flow_tangent(paper, paper.m, 0.0), G)
+    assert w < -0.3 and det < -0.15
