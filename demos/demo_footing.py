@@ -40,7 +40,7 @@ B, L = 1.0, 5.0  # footing width, size of the half model [m]
 C, E, NU = 100e3, 100e6, 0.3  # cohesion [Pa], soil stiffness
 PHI = 30.0  # friction angle of the frictional soil [deg]
 SOILS = ("cohesive", "frictional", "frictional-associated")
-SETTLEMENT = {"cohesive": 0.05, "frictional": 0.3, "frictional-associated": 0.3}  # to collapse [m]
+SETTLEMENT = {"cohesive": 0.05, "frictional": 0.05, "frictional-associated": 0.3}  # footing push [m]
 
 
 def soil(kind):

@@ -191,3 +191,15 @@ def test_non_associated_flow_loses_uniqueness_and_ellipticity_the_associated_con
     assert w < -0.2 and det < -0.1
     w, det = uniqueness_and_ellipticity(plane_strain_flow_tangent(paper, paper.m, 0.0), G)
     assert w < -0.3 and det < -0.15
+
+
+def test_mpm_update_is_the_small_strain_step_without_spin():
+    mat = material(12.0)
+    sigma, deps = around_apex(mat)
+    dt = 1e-3
+    state = {"eps_p": np.full(len(sigma), 0.01)}
+    sig_fe, _, new = mat.small_strain_update(sigma, from_mandel(deps), state)
+    sig = mat.update(sigma, from_mandel(deps) / dt, np.zeros_like(sigma), dt, state)
+    np.testing.assert_allclose(sig, sig_fe, rtol=1e-12, atol=1e-9 * mat.tension_limit)
+    np.testing.assert_allclose(state["eps_p"], new["eps_p"], rtol=1e-12)
+    assert np.any(new["eps_p"] > 0.01)
