@@ -11,11 +11,15 @@ capacity q_u = N_c c:
 - frictional soil, phi = 30 deg, with the paper's Drucker–Prager cone
   q = m (p + c cot phi) and non-associated g = q (rate-independent limit): compared with the
   Mohr–Coulomb N_c = (N_q - 1) cot phi = 30.14, N_q = exp(pi tan phi) tan^2(45 + phi/2),
-  which assumes associated flow; the plastically incompressible g = q gives less.
+  which assumes associated flow; the plastically incompressible g = q gives less;
+- frictional-associated: the Drucker–Prager cone matched to Mohr–Coulomb in plane strain with
+  associated flow (:class:`MohrCoulombDruckerPrager`, M = 0.832 at 30 deg), whose collapse load
+  is Mohr–Coulomb's: N_c = 30.14.
 
 The mesh is graded towards the footing edge, where the stresses are singular.
 
-    python demos/demo_footing.py [--soil cohesive|frictional] [--quick] [--output results/footing]
+    python demos/demo_footing.py [--soil cohesive|frictional|frictional-associated] [--quick]
+        [--output results/footing]
 """
 
 import argparse
@@ -37,6 +41,14 @@ from dolfin_mpm.plotting import figure
 B, L = 1.0, 5.0  # footing width, size of the half model [m]
 C, E, NU = 100e3, 100e6, 0.3  # cohesion [Pa], soil stiffness
 PHI = 30.0  # friction angle of the frictional soil [deg]
+SOILS = ("cohesive", "frictional", "frictional-associated")
+SETTLEMENT = {"cohesive": 0.05, "frictional": 0.05, "frictional-associated": 0.3}  # footing push [m]
+
+
+def prandtl_nc(phi):
+    """Prandtl's N_c = (N_q - 1) cot phi, N_q = exp(pi tan phi) tan^2(45 + phi/2); ``phi`` [deg]."""
+    t = np.tan(np.radians(phi))
+    return (np.exp(np.pi * t) * np.tan(np.radians(45.0 + phi / 2.0)) ** 2 - 1.0) / t
 
 
 def soil(kind):
@@ -44,11 +56,22 @@ def soil(kind):
     if kind == "cohesive":
         return dm.VonMises(E=E, nu=NU, rho=1.0, sigma_y=np.sqrt(3.0) * C), 2.0 + np.pi
     if kind == "frictional":
-        t = np.tan(np.radians(PHI))
-        n_q = np.exp(np.pi * t) * np.tan(np.radians(45.0 + PHI / 2.0)) ** 2
-        mat = dm.DruckerPragerViscoplastic(E=E, nu=NU, rho=1.0, phi=PHI, gamma=np.inf, c=C)
-        return mat, (n_q - 1.0) / t
-    raise ValueError(f"soil must be 'cohesive' or 'frictional', got {kind!r}")
+        return dm.DruckerPragerViscoplastic(E=E, nu=NU, rho=1.0, phi=PHI, gamma=np.inf, c=C), prandtl_nc(PHI)
+    if kind == "frictional-associated":
+        return dm.MohrCoulombDruckerPrager(E=E, nu=NU, rho=1.0, phi=PHI, c=C), prandtl_nc(PHI)
+    raise ValueError(f"soil must be one of {SOILS}, got {kind!r}")
+
+
+def davis_capacity(material):
+    """Davis's estimate of q_u / C for a cone ``q = m (p + a)`` with isochoric flow (psi = 0).
+
+    In plane strain that cone is Mohr–Coulomb with sin phi' = m / sqrt(3) and c' = a tan phi';
+    Davis (1968) replaces a non-associated soil by an associated one with tan phi* = sin phi'
+    (psi = 0) and c* = c' cos phi', whose N_c gives q_u = N_c(phi*) c*.
+    """
+    phi_e = np.arcsin(material.m / np.sqrt(3.0))
+    c_star = material.tension_limit * np.tan(phi_e) * np.cos(phi_e)
+    return prandtl_nc(np.degrees(np.arctan(np.sin(phi_e)))) * c_star / C
 
 
 def graded(n, length, at, fine):
@@ -76,9 +99,11 @@ def half_space(n, fine):
     return msh
 
 
-def run(kind="cohesive", n=32, settlement=0.05, steps=25, progress=True):
-    """Push the footing down by ``settlement`` [m] with the FE solver; returns q(settlement), q_u."""
+def run(kind="cohesive", n=32, settlement=None, steps=25, progress=True):
+    """Push the footing down by ``settlement`` [m] (default ``SETTLEMENT[kind]``) with the FE
+    solver; returns the load–settlement curve and q_u."""
     material, n_c = soil(kind)
+    settlement = SETTLEMENT[kind] if settlement is None else settlement
     msh = half_space(n, fine=0.02 * B)
     fe = QuasiStatic(msh, material, degree=2)
     tol = 1e-9
@@ -225,7 +250,7 @@ def plot(results, path, mpm=()):
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0].lstrip("# "))
-    parser.add_argument("--soil", default="cohesive", choices=["cohesive", "frictional"])
+    parser.add_argument("--soil", default="cohesive", choices=SOILS)
     parser.add_argument("--quick", action="store_true", help="coarse meshes, few steps")
     parser.add_argument("--output", type=Path, default=Path("results/footing"))
     args = parser.parse_args()

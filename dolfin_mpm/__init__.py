@@ -8,7 +8,7 @@ from dolfin_mpm import compat
 from dolfin_mpm.boundary import FixedBC, FrictionalWall, SlipBC, VelocityBC
 from dolfin_mpm.grid import Grid
 from dolfin_mpm.io import Output
-from dolfin_mpm.materials import DruckerPragerViscoplastic, LinearElastic, VonMises
+from dolfin_mpm.materials import DruckerPragerViscoplastic, LinearElastic, MohrCoulombDruckerPrager, VonMises
 from dolfin_mpm.nonlocal_average import NonlocalAverage
 from dolfin_mpm.particles import Particles, Sink
 from dolfin_mpm.seeding import geostatic_stress, seed
@@ -22,6 +22,7 @@ __all__ = [
     "FrictionalWall",
     "Grid",
     "LinearElastic",
+    "MohrCoulombDruckerPrager",
     "NonlocalAverage",
     "Output",
     "Particles",

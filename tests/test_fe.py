@@ -7,7 +7,7 @@ from mpi4py import MPI
 from test_demos import load
 
 from dolfin_mpm.fe import ConvergenceError, QuasiStatic
-from dolfin_mpm.materials import VonMises
+from dolfin_mpm.materials import MohrCoulombDruckerPrager, VonMises
 
 
 def test_cylinder_limit_pressure_and_elastoplastic_path():
@@ -38,6 +38,14 @@ def test_footing_mpm_on_cohesive_soil_reaches_prandtl():
     assert r["plateau_spread"] < 0.05
 
 
+def test_footing_on_frictional_soil_with_the_plane_strain_matched_associated_cone_reaches_prandtl():
+    r = load("demo_footing").run("frictional-associated", n=16, steps=10, progress=False)
+    assert r["failed_at"] is None
+    assert abs(r["error"]) < 0.05  # the issue's 5 % against Mohr-Coulomb's N_c = 30.14
+    assert abs(r["plateau"]) < 0.01
+    assert r["newton_max"] <= 12
+
+
 def test_oedometer_follows_k0_then_the_cone(tmp_path):
     demo = load("demo_oedometer")
     r, mpm = demo.run(progress=False), demo.run_mpm()
@@ -57,6 +65,38 @@ def unit_square(n=2):
     return mesh.create_rectangle(MPI.COMM_WORLD, [np.zeros(2), np.ones(2)], [n, n], mesh.CellType.triangle)
 
 
+@pytest.mark.parametrize("psi", [0.0, 10.0])
+def test_jacobian_of_a_non_symmetric_tangent_is_the_derivative_of_the_internal_force(psi):
+    """Non-associated flow makes the material tangent non-symmetric: the assembled Jacobian must
+    apply it as d sigma / d eps (not its transpose)."""
+    import dolfinx.fem.petsc
+
+    mat = MohrCoulombDruckerPrager(E=1e7, nu=0.3, rho=1.0, phi=30.0, c=1e3, psi=psi)
+    fe = QuasiStatic(unit_square(3), mat)
+    rng = np.random.default_rng(3)
+    x = fe.V.tabulate_dof_coordinates()[:, :2]
+    u0 = np.column_stack([-2e-3 * x[:, 0] + 3e-3 * x[:, 1], -1e-3 * x[:, 1]]).ravel()
+    u0 += rng.normal(0.0, 2e-4, u0.shape)  # points in different states
+    v = rng.normal(0.0, 1e-3, u0.shape)
+
+    def force(u):
+        fe.u.x.array[:] = u
+        fe._update_stress()
+        return fe.internal_force()
+
+    h = 1e-7
+    fd = (force(u0 + h * v) - force(u0 - h * v)) / (2 * h)
+    force(u0)
+    A = dolfinx.fem.petsc.assemble_matrix(fe._jacobian)
+    A.assemble()
+    vec, Av = A.createVecRight(), A.createVecLeft()
+    vec.setArray(v)
+    A.mult(vec, Av)
+    D = fe._tangent_q.x.array.reshape(-1, 4, 4)
+    assert np.abs(D - D.transpose(0, 2, 1)).max() > 0.05 * mat.E  # the test needs non-symmetric tangents
+    np.testing.assert_allclose(Av.getArray(), fd, atol=1e-6 * np.abs(fd).max())
+
+
 def test_convergence_error_names_the_load_reached():
     msh = unit_square()
     fe = QuasiStatic(msh, VonMises(E=1e9, nu=0.3, rho=1.0, sigma_y=1e6))
@@ -70,8 +110,10 @@ def test_convergence_error_names_the_load_reached():
 
 
 @pytest.mark.parametrize(
-    "kwargs, match", [({"degree": 3}, "degree must be 1 or 2"), ({"tol": 0.0}, r"tol must be in \(0, 1\)")]
-)
+    "kwargs, match",
+    [({"degree": 3}, "degree must be 1 or 2"), ({"tol": 0.0}, r"tol must be in \(0, 1\)"),
+     ({"max_backtracks": -1}, "max_backtracks must be an integer >= 0")],
+)  # fmt: skip
 def test_bad_solver_input(kwargs, match):
     with pytest.raises(ValueError, match=match):
         QuasiStatic(unit_square(), VonMises(E=1e9, nu=0.3, rho=1.0, sigma_y=1e6), **kwargs)

@@ -61,18 +61,23 @@ class QuasiStatic:
         tol: Newton converges when the out-of-balance force is below ``tol`` times the larger
             of the applied load and the internal force (reactions included).
         max_iter: Newton iterations per step before the step is cut.
+        max_backtracks: halvings of a Newton step that does not reduce the out-of-balance
+            force (line search); 0 takes every full step.
 
     """
 
     def __init__(self, msh, material, degree: int = 2, quadrature_degree: int = 2, tol: float = 1e-8,
-                 max_iter: int = 25):  # fmt: skip
+                 max_iter: int = 25, max_backtracks: int = 4):  # fmt: skip
         if msh.topology.dim != 2 or msh.topology.cell_name() != "triangle":
             raise ValueError("msh must be a 2D triangle mesh")
         if degree not in (1, 2):
             raise ValueError(f"degree must be 1 or 2, got {degree!r}")
         if not 0.0 < tol < 1.0:
             raise ValueError(f"tol must be in (0, 1), got {tol!r}")
+        if not (isinstance(max_backtracks, (int, np.integer)) and max_backtracks >= 0):
+            raise ValueError(f"max_backtracks must be an integer >= 0, got {max_backtracks!r}")
         self.msh, self.material, self.tol, self.max_iter = msh, material, tol, max_iter
+        self.max_backtracks = max_backtracks
         self.comm = msh.comm
         self.V = compat.function_space(msh, "Lagrange", degree, (2,))
         self.u = fem.Function(self.V, name="displacement")
@@ -186,7 +191,14 @@ class QuasiStatic:
                     step /= 2
 
     def _try_step(self, load: float) -> bool:
-        """Newton from the converged state to ``load``; on success the new state is kept."""
+        """Newton from the converged state to ``load``; on success the new state is kept.
+
+        The first iteration imposes the prescribed displacements; every later Newton step is
+        halved (at most ``max_backtracks`` times) until the out-of-balance force decreases,
+        which keeps iterates out of states far from equilibrium (e.g. whole regions pushed to
+        the apex of a cone, where the tangent vanishes and the matrix becomes singular). A step
+        that decreases it at no size is taken at the smallest.
+        """
         start = time.perf_counter()
         u_converged = self.u.x.array.copy()
         owned = 2 * self.V.dofmap.index_map.size_local
@@ -196,19 +208,8 @@ class QuasiStatic:
         free[bc] = False
         rows = (bc + 2 * self.V.dofmap.index_map.local_range[0]).astype(PETSc.IntType)
         f_ext = load * self._f_unit[:owned]
-        for it in range(self.max_iter + 1):
-            f_int = self.internal_force()
-            R = f_int - f_ext
-            norms = self.comm.allreduce(np.array([R[free] @ R[free], f_ext @ f_ext, f_int @ f_int]), MPI.SUM)
-            if not np.isfinite(norms[0]):
-                break
-            if it > 0 and math.sqrt(norms[0]) <= self.tol * max(math.sqrt(norms[1:].max()), 1e-300):
-                self.load = load
-                self.sigma, self.state, self._eps = self._iterate
-                self.history.append(Step(load, it, time.perf_counter() - start))
-                return True
-            if it == self.max_iter:
-                break
+        R, r, scale = self._out_of_balance(f_ext, free)
+        for it in range(1, self.max_iter + 1):
             A = dolfinx.fem.petsc.assemble_matrix(self._jacobian)
             A.assemble()
             b, du, x = A.createVecRight(), A.createVecLeft(), A.createVecLeft()
@@ -219,14 +220,41 @@ class QuasiStatic:
             A.zeroRowsColumns(rows, 1.0, x, b)  # lifting: b -= A x, then b[rows] = x[rows]
             self._ksp.setOperators(A)
             self._ksp.solve(b, du)
-            self.u.x.array[:owned] += du.getArray()
-            self.u.x.scatter_forward()
+            step = du.getArray().copy()
             for obj in (A, b, du, x):
                 obj.destroy()
-            self._update_stress()
+            if not self.comm.allreduce(bool(np.isfinite(step).all()), MPI.LAND):
+                break
+            u_start, r_start, s = self.u.x.array[:owned].copy(), r, 1.0
+            for _ in range(self.max_backtracks + 1):
+                self.u.x.array[:owned] = u_start + s * step
+                self.u.x.scatter_forward()
+                self._update_stress()
+                R, r, scale = self._out_of_balance(f_ext, free)
+                if it == 1 or r < r_start:
+                    break
+                s /= 2
+            if not np.isfinite(r):
+                break
+            if r <= self.tol * scale:
+                self.load = load
+                self.sigma, self.state, self._eps = self._iterate
+                self.history.append(Step(load, it, time.perf_counter() - start))
+                return True
         self.u.x.array[:] = u_converged
         self._update_stress()
         return False
+
+    def _out_of_balance(self, f_ext: np.ndarray, free: np.ndarray) -> tuple[np.ndarray, float, float]:
+        """Out-of-balance force at the current iterate.
+
+        Returns ``f_int - f_ext`` on the owned dofs [N/m], its norm on the free dofs and the
+        force scale of the convergence test (the larger of ``|f_ext|`` and ``|f_int|``).
+        """
+        f_int = self.internal_force()[: len(free)]
+        R = f_int - f_ext
+        norms = self.comm.allreduce(np.array([R[free] @ R[free], f_ext @ f_ext, f_int @ f_int]), MPI.SUM)
+        return R, math.sqrt(norms[0]), max(math.sqrt(norms[1:].max()), 1e-300)
 
     def _update_stress(self) -> None:
         """Return mapping at every quadrature point from the converged state to the current ``u``."""
