@@ -4,8 +4,10 @@ VENV_PYPI ?= .venv-pypi
 PY        := $(VENV)/bin/python
 PY_PYPI   := $(VENV_PYPI)/bin/python
 PYTEST_ARGS ?=
+MPI_RANKS ?= 2
+MPI_TESTS := tests/test_parallel.py
 
-.PHONY: demo test test-pypi test-mpi bench lint paraview-check setup setup-pypi clean
+.PHONY: demo test test-pypi test-mpi test-mpi-pypi bench lint paraview-check setup setup-pypi clean
 
 $(VENV)/.ready: pyproject.toml scripts/setup-debian.sh
 	bash scripts/setup-debian.sh $(VENV)
@@ -29,6 +31,14 @@ test-pypi: $(VENV_PYPI)/.ready
 
 paraview-check: $(VENV)/.ready
 	bash scripts/paraview-check.sh $(PY)
+
+# The parallel tests under mpirun (Debian's Open MPI; root needs its two confirmations).
+test-mpi: $(VENV)/.ready
+	OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 mpirun -n $(MPI_RANKS) --oversubscribe \
+		$(PY) -m pytest -q -p no:cacheprovider $(MPI_TESTS)
+
+test-mpi-pypi: $(VENV_PYPI)/.ready
+	$(VENV_PYPI)/bin/mpiexec -n $(MPI_RANKS) $(PY_PYPI) -m pytest -q -p no:cacheprovider $(MPI_TESTS)
 
 bench: $(VENV)/.ready
 	$(PY) benchmarks/step_throughput.py
