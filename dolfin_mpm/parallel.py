@@ -9,6 +9,8 @@ rank copies of the other ranks' particles near its own, for the non-local averag
 Everything here is collective over the grid's communicator.
 """
 
+import time
+
 import numpy as np
 
 from dolfin_mpm.grid import Grid
@@ -97,14 +99,21 @@ class DistributedAverage:
 
     def __init__(self, average, comm):
         self.average, self.comm = average, comm
+        self.halo_seconds = 0.0  #: time spent building and exchanging halos [s]
 
     def update(self, x: np.ndarray, volume: np.ndarray, ids: np.ndarray) -> None:
+        start = time.perf_counter()
         self.halo = Halo(self.comm, x, self.average.radius)
         self.n = len(x)
-        self.average.update(*(np.concatenate([a, self.halo.gather(a)]) for a in (x, volume, ids)))
+        x, volume, ids = (np.concatenate([a, self.halo.gather(a)]) for a in (x, volume, ids))
+        self.halo_seconds += time.perf_counter() - start
+        self.average.update(x, volume, ids)
 
     def __call__(self, e: np.ndarray) -> np.ndarray:
-        return self.average(np.concatenate([e, self.halo.gather(e)]))[: self.n]
+        start = time.perf_counter()
+        e = np.concatenate([e, self.halo.gather(e)])
+        self.halo_seconds += time.perf_counter() - start
+        return self.average(e)[: self.n]
 
     def __getattr__(self, name):
         # radius, weight, rebuilds, state(), restore(): the wrapped average's (its pair list is

@@ -188,8 +188,10 @@ class Solver:
             if sink.region is not None:
                 sink.absorb(P, np.asarray(sink.region(P.x.T), dtype=bool), self.time)
         cells, N = locate(self.grid, P.x, P.cell)
-        if self.comm.size > 1 and migrate(self.grid, P, cells):
-            cells, N = locate(self.grid, P.x, P.cell)
+        if self.comm.size > 1:
+            with self._stage("migrate"):
+                if migrate(self.grid, P, cells):
+                    cells, N = locate(self.grid, P.x, P.cell)
         lost = cells < 0
         if np.any(lost):
             if self.on_exit == "error":
