@@ -12,6 +12,7 @@ Everything here is collective over the grid's communicator.
 import time
 
 import numpy as np
+from mpi4py import MPI
 
 from dolfin_mpm.grid import Grid
 from dolfin_mpm.locate import locate
@@ -122,29 +123,39 @@ class DistributedAverage:
 
 
 class Halo:
-    """Copies of the other ranks' particles within ``margin`` of this rank's particle box.
+    """Copies of the other ranks' particles within ``margin`` of this rank's particles.
 
-    Each rank sends the particles that lie inside another rank's bounding box of particles
-    widened by ``margin``; the halo is fixed at construction and :meth:`gather` fetches any
+    Space is cut into cubes of side ``margin``; each rank sends the particles in the cubes
+    next to (or in) a cube another rank has particles in, a superset of those within
+    ``margin`` of them. The halo is fixed at construction and :meth:`gather` fetches any
     per-particle field for it.
 
     Args:
         comm: the communicator of the grid.
         x: this rank's particle positions, ``shape=(n, gdim)``.
-        margin: widening of the boxes [m], >= the averaging radius.
+        margin: distance [m] the halo must cover, > 0 (the averaging radius).
 
     """
 
     def __init__(self, comm, x: np.ndarray, margin: float):
         self.comm = comm
-        box = (x.min(axis=0) - margin, x.max(axis=0) + margin) if len(x) else None
-        boxes = comm.allgather(box)
+        gdim = x.shape[1]
+        lo, hi = np.full(gdim, np.inf), np.full(gdim, -np.inf)
+        comm.Allreduce(x.min(axis=0, initial=np.inf), lo, MPI.MIN)
+        comm.Allreduce(x.max(axis=0, initial=-np.inf), hi, MPI.MAX)
+        shape = np.floor((hi - lo) / margin).astype(np.int64) + 3  # one spare cube each side
+        cube = np.floor((x - lo) / margin).astype(np.int64) + 1
+        key = np.ravel_multi_index(tuple(cube.T), shape)
+        occupied = comm.allgather(np.unique(key))
+        offsets = np.stack(np.meshgrid(*[[-1, 0, 1]] * gdim, indexing="ij"), -1).reshape(-1, gdim)
         self.send = []  # per rank: indices of the particles it gets
-        for rank, other in enumerate(boxes):
-            if rank == comm.rank or other is None:
+        for rank, keys in enumerate(occupied):
+            if rank == comm.rank or keys.size == 0:
                 self.send.append(np.zeros(0, dtype=np.intp))
-            else:
-                self.send.append(np.flatnonzero(np.all((x >= other[0]) & (x <= other[1]), axis=1)))
+                continue
+            near = np.unravel_index(keys, shape)
+            near = np.ravel_multi_index((np.stack(near, -1)[:, None, :] + offsets).reshape(-1, gdim).T, shape)
+            self.send.append(np.flatnonzero(np.isin(key, near)))
         self.size = sum(comm.alltoall([len(s) for s in self.send]))
 
     def gather(self, values: np.ndarray) -> np.ndarray:
