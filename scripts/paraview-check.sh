@@ -8,16 +8,7 @@ PY=${1:-.venv/bin/python}
 OUT=${2:-results/silo/paraview_silo.png}
 RUN=results/silo/runs/h10mm_r5mm_cubic_wall20
 
-missing=""
-for p in paraview xvfb xauth; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing="$missing $p"
-done
-if [ -n "$missing" ]; then
-  echo "Installing Debian packages:$missing"
-  SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
-  $SUDO apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq $missing
-fi
+bash "$(dirname "$0")/debian-packages.sh" paraview xvfb xauth
 
 [ -f "$RUN/particles.xdmf" ] || "$PY" demos/demo_silo.py
 # pvbatch renders through X: a virtual server, open to local clients.

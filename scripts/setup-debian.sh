@@ -6,16 +6,7 @@ set -euo pipefail
 VENV=${1:-.venv}
 PKGS="python3-dolfinx-real openmpi-bin python3-scipy python3-h5py python3-meshio python3-matplotlib python3-pytest python3-venv python3-pip"
 
-missing=""
-for p in $PKGS; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing="$missing $p"
-done
-if [ -n "$missing" ]; then
-  echo "Installing Debian packages:$missing"
-  SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
-  $SUDO apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq $missing
-fi
+bash "$(dirname "$0")/debian-packages.sh" $PKGS
 
 if [ ! -x "$VENV/bin/python" ]; then
   /usr/bin/python3 -m venv --system-site-packages "$VENV"

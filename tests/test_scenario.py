@@ -1,6 +1,5 @@
 """Scenario files: validation that reports every problem with its TOML path, building, the CLI."""
 
-import importlib.util
 import math
 import subprocess
 import sys
@@ -13,6 +12,7 @@ import meshio
 import numpy as np
 import pytest
 from mpi4py import MPI
+from test_demos import load
 
 from dolfin_mpm import scenario
 from dolfin_mpm.cli import main
@@ -109,18 +109,11 @@ def test_a_wall_that_holds_no_node_is_named(tmp_path):
         scenario.build(cfg)
 
 
-def _load_demo(name):
-    spec = importlib.util.spec_from_file_location(name, DEMOS / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 def test_silo_scenario_is_the_silo_demo(tmp_path):
     """The silo file, coarsened with --set, takes the demo's steps bit for bit (settling, opening)."""
     h, r = 0.025, 0.02
     rows = math.ceil(0.05 / h) + 1  # as the demo lays out its grid
-    reference = _load_demo("demo_silo").run(h=h, radius=r, t_end=0.02, t_settle=0.01, progress=False)
+    reference = load("demo_silo").run(h=h, radius=r, t_end=0.02, t_settle=0.01, progress=False)
     overrides = [
         f"mesh.lower=[0.0, {-rows * h!r}]", f"mesh.upper=[0.2, {0.3 + h!r}]",
         f"mesh.cells=[8, {rows + 13}]", f"nonlocal.radius={r}", "time.start=-0.01", "time.end=0.02",
