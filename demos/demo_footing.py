@@ -179,27 +179,32 @@ def run_mpm(
 ):
     """The same footing with the explicit MPM, pushed down quasi-statically; returns q(settlement).
 
-    The footing's nodes move down at ``speed`` times the p-wave speed (no horizontal motion:
-    rough) to ``settlement`` [m], well below the cell size ``h`` [m] under the footing, so the
-    material under it stays in the cells of those nodes. Local damping takes out the waves.
-    ``q`` is the footing's reaction over B/2, averaged over each of ``records`` intervals.
+    The rigid footing is the set of grid nodes inside it: ``x <= B/2`` and above its base,
+    which moves down at ``speed`` times the p-wave speed (no horizontal motion: rough) to
+    ``settlement`` [m]; nodes join the set as the base passes them, so the footing can sink
+    by many cells ``h`` [m]. Local damping takes out the waves. ``q`` is the reaction of the
+    footing's nodes over B/2, averaged over each of ``records`` intervals.
     """
     material, n_c = soil(kind)
-    grid = dm.Grid(mpm_half_space(h))
+    grid = dm.Grid(mpm_half_space(h, above=2 + math.ceil(settlement / h)))  # room for the heave
     tol = 1e-9
     particles = dm.seed(grid, material, ppc=ppc, where=lambda x: x[1] < tol)
-    footing = grid.nodes_where(lambda x: (np.abs(x[1]) < tol) & (x[0] < B / 2 + tol))
     v = speed * material.p_wave_speed()
     bcs = [
         dm.SlipBC(grid.nodes_where(lambda x: (np.abs(x[0]) < tol) | (np.abs(x[0] - L) < tol)), normal=(1, 0)),
         dm.FixedBC(grid.nodes_where(lambda x: np.abs(x[1] + L) < tol)),
-        dm.VelocityBC(footing, velocity=(0.0, -v)),
     ]
     solver = dm.Solver(grid, particles, material, bcs=bcs, damping=damping)
+    under = grid.node_x[:, 0] < B / 2 + tol
+    footing = np.zeros(0, dtype=np.int64)
     every = math.ceil(settlement / (v * solver.dt) / records)
     curve = {"settlement": [0.0], "q": [0.0]}
     force, start = 0.0, time.perf_counter()
     for k in range(1, every * records + 1):
+        inside = np.flatnonzero(under & (grid.node_x[:, 1] > -v * (solver.time + solver.dt) - tol))
+        if len(inside) != len(footing):  # the base passed a row of nodes
+            footing = inside
+            solver.bcs = [*bcs, dm.VelocityBC(footing, velocity=(0.0, -v))]
         solver.step()
         force += solver.reaction(footing)[1]
         if k % every == 0:

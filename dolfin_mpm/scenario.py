@@ -530,6 +530,7 @@ def _output(c: _Checker, t: dict, time: dict, materials: dict, gdim: int) -> dic
     fields = [*_PARTICLE_FIELDS, *"xyz"[:gdim]]
     fields = [f"v{a}" if len(a) == 1 else a for a in fields]
     fields += sorted({s for m in materials.values() for s in m.get("state", [])})
+    known = all("state" in m for m in materials.values())
     o = {
         "interval": c.value(t, "output", "interval", "number", span / 50, check=positive),
         "xdmf": c.value(t, "output", "xdmf", "bool", True),
@@ -537,7 +538,10 @@ def _output(c: _Checker, t: dict, time: dict, materials: dict, gdim: int) -> dic
             t, "output", "checkpoint_interval", "number", span / 10, check=positive
         ),
         "figures": c.value(t, "output", "figures", "bool", True),
-        "figure_field": c.value(t, "output", "figure_field", "string", "speed", check=tuple(fields)),
+        # A material with bad parameters has no state names yet: no second error from it here.
+        "figure_field": c.value(
+            t, "output", "figure_field", "string", "speed", check=tuple(fields) if known else None
+        ),
         "figure_interval": c.value(t, "output", "figure_interval", "number", span / 5, check=positive),
     }
     return o

@@ -74,6 +74,12 @@ def test_every_problem_is_reported_with_its_toml_path(tmp_path):
     assert sorted(errors) == sorted(expected)
 
 
+def test_a_bad_material_does_not_also_fail_the_figure_field():
+    with pytest.raises(scenario.ScenarioError) as info:
+        scenario.load(DEMOS / "silo.toml", ["materials.sand.E=-1"])
+    assert str(info.value) == "materials.sand.E: must be > 0 Pa, got -1"  # and nothing else
+
+
 def test_malformed_toml_gives_line_and_column(tmp_path):
     (tmp_path / "broken.toml").write_text('[mesh]\nshape = "rectangle"\nlower = [0.0; 0.0]\n')
     with pytest.raises(scenario.ScenarioError, match=r"broken.toml: .*line 3, column 13"):
