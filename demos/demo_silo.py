@@ -245,7 +245,9 @@ def band_widths(result, width=0.2, y_band=0.15) -> dict:
     ``band``: full width at half maximum of the e_vp_bar peak at mid-height ``y_band``, at
     t_end (particles of a 1 cm strip, bins of half a cell): the band between the stagnant
     material at the wall and the flowing core; ``channel``: the distance over which the
-    time-averaged downward velocity at ``y_c`` rises from 10 % to 90 % from the wall to the axis.
+    time-averaged downward velocity at ``y_c`` rises from 10 % to 90 % from the wall to the axis;
+    ``outlet``: full width at half maximum of the time-averaged e_vp_bar peak across the left
+    half at ``y_c``, the section above the outlet edge, and ``outlet_x`` where that peak is.
     """
     x, e = result["x"], result["e_vp_bar"]
     strip = (np.abs(x[:, 1] - y_band) < 0.005) & (x[:, 0] < 0.5 * width)
@@ -253,9 +255,14 @@ def band_widths(result, width=0.2, y_band=0.15) -> dict:
     count, total = bin_sums(x[strip, 0], edges, e[strip])
     mean = total[count > 0] / count[count > 0]
     centres = 0.5 * (edges[1:] + edges[:-1])[count > 0]
-    xv, v = result["profile_x"], result["profile_v_y"]
+    xv, v, ev = result["profile_x"], result["profile_v_y"], result["profile_e_vp_bar"]
     left = xv < 0.5 * width
-    return {"band": fwhm(centres, mean), "channel": rise_width(xv[left], -v[left])}
+    return {
+        "band": fwhm(centres, mean),
+        "channel": rise_width(xv[left], -v[left]),
+        "outlet": fwhm(xv[left], ev[left]),
+        "outlet_x": float(xv[left][np.argmax(ev[left])]),
+    }
 
 
 def flow_rate(t, mass, t_from=0.1):
@@ -433,14 +440,16 @@ def report(folder: Path, path: Path) -> str:
         return (
             f"| {1e3 * r['h']:g} | {1e3 * r['radius']:g} | {r['weight']} | {r['wall_friction']:g} "
             f"| {r['flow_rate']:.1f} | {r['e_vp_bar_max']:.1f} "
-            f"| {1e3 * w['band']:.1f} | {1e3 * w['channel']:.1f} "
+            f"| {1e3 * w['band']:.1f} | {1e3 * w['outlet']:.1f} at {1e3 * w['outlet_x']:.0f} "
+            f"| {1e3 * w['channel']:.1f} "
             f"| {r['particles']} | {r['steps']} | {r['mean_iterations']:.2f} | {r['seconds']:.0f} |"
         )
 
     header = [
         "| h [mm] | r [mm] | weight | wall friction [°] | flow rate [kg/s/m] | max e_vp_bar [1/s] "
-        "| band [mm] | channel [mm] | particles at end | steps | iterations/step | time [s] |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| band [mm] | outlet section [mm] | channel [mm] | particles at end | steps | iterations/step "
+        "| time [s] |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for name, runs in studies.items():
         out += [f"## Study: {name}", "", *header, *(row(r) for r in runs), ""]
@@ -463,7 +472,10 @@ def report(folder: Path, path: Path) -> str:
             out += [
                 "- The band column measures the largest e_vp_bar peak at mid-height: where no band "
                 "forms there (the non-local runs so far), it is the width of a weak bump, not of a "
-                "band; compare the maps.",
+                "band; compare the maps. The outlet section is the FWHM of the time-averaged "
+                "e_vp_bar peak across the left half at y = outlet / 2 (over the last fifth of the run) "
+                "and the x [mm] of that peak (the outlet edge is at 50 mm): at that height the rate "
+                "is spread over the converging flow rather than a thin band from the edge.",
                 f"- Beverloo (2D, d -> 0, C = 0.58-1.5): {lo:.0f}-{hi:.0f} kg/s/m.",
                 "",
                 "![e_vp_bar maps](images/silo_maps.png)",

@@ -57,6 +57,9 @@ def test_silo_quick_discharge(tmp_path):
     peak = x[inside][np.argmax(e[inside])]
     assert min(np.hypot(peak[0] - 0.05, peak[1]), np.hypot(peak[0] - 0.15, peak[1])) < 0.05
     assert r["unconverged"] == 0
+    # The section at y = outlet / 2: a peak of the time-averaged rate, narrower than the half silo.
+    widths = demo.band_widths(r)
+    assert 0.0 < widths["outlet"] < 0.1 and 0.0 < widths["outlet_x"] < 0.1
     assert (tmp_path / "particles.xdmf").exists()
 
 
