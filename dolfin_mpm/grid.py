@@ -24,6 +24,8 @@ class Grid:
         mass, momentum, f_ext, f_int, f_contact, velocity, acceleration: nodal Functions
             [kg, kg m/s, N, N, N, m/s, m/s^2] (per metre of depth in 2D).
         cell_dofs: nodes of each cell, ``shape=(num_cells, gdim + 1)``.
+        num_owned_cells: cells this rank owns; they come first, then the ghosts.
+        cell_owner: rank owning each local cell, ``shape=(num_cells,)``.
         K: inverse Jacobian of each cell's affine map, ``shape=(tdim, gdim, num_cells)``.
         grad_N: P1 basis gradients in each cell [1/m], ``shape=(gdim + 1, gdim, num_cells)``.
         node_x: node coordinates, ``shape=(num_nodes, 3)``.
@@ -56,6 +58,11 @@ class Grid:
         self.num_owned_nodes = index_map.size_local
         self.num_nodes = index_map.size_local + index_map.num_ghosts
         self.num_cells = self.cell_dofs.shape[0]
+        cell_map = msh.topology.index_map(self.tdim)
+        self.num_owned_cells = cell_map.size_local
+        self.cell_owner = np.concatenate(
+            [np.full(cell_map.size_local, self.comm.rank, dtype=np.int32), cell_map.owners.astype(np.int32)]
+        )
         self.node_x = self.V.tabulate_dof_coordinates()[: self.num_nodes]
 
         self.mass = fem.Function(self.Q, name="mass")

@@ -142,14 +142,13 @@ class Output:
         """The static mesh, gathered once: owned nodes' P1 dofs, and on rank 0 the sorted mesh."""
         msh = grid.mesh
         geom_dofs = compat.geometry_dofmap(msh)
-        num_owned_cells = msh.topology.index_map(grid.tdim).size_local
         # Values at geometry nodes (P1: geometry node i of a cell carries dof i of the cell).
         node_of_geom = np.empty(msh.geometry.x.shape[0], dtype=np.int64)
         node_of_geom[geom_dofs] = grid.cell_dofs
         gmap = msh.geometry.index_map()
         owned = gmap.size_local
         global_nodes = gmap.local_to_global(np.arange(owned + gmap.num_ghosts, dtype=np.int32))
-        cells = _gather(self.comm, global_nodes[geom_dofs[:num_owned_cells]])
+        cells = _gather(self.comm, global_nodes[geom_dofs[: grid.num_owned_cells]])
         ids = _gather(self.comm, global_nodes[:owned])
         x = _gather(self.comm, msh.geometry.x[:owned])
         if self.comm.rank != 0:

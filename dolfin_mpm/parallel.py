@@ -18,15 +18,7 @@ from dolfin_mpm.grid import Grid
 from dolfin_mpm.locate import locate
 from dolfin_mpm.particles import Particles
 
-__all__ = ["DistributedAverage", "Halo", "cell_owners", "exchange", "migrate"]
-
-
-def cell_owners(grid: Grid) -> np.ndarray:
-    """Rank owning each local cell (owned cells first, then ghosts), ``shape=(num_cells,)``."""
-    index_map = grid.mesh.topology.index_map(grid.tdim)
-    return np.concatenate(
-        [np.full(index_map.size_local, grid.comm.rank, dtype=np.int32), index_map.owners.astype(np.int32)]
-    )
+__all__ = ["DistributedAverage", "Halo", "exchange", "migrate"]
 
 
 def exchange(comm, particles: Particles, dest: np.ndarray) -> int:
@@ -55,11 +47,10 @@ def exchange(comm, particles: Particles, dest: np.ndarray) -> int:
 def _owners_elsewhere(grid: Grid, x: np.ndarray) -> np.ndarray:
     """Rank whose owned cells hold each point of ``x`` (``(n, 3)``, this rank's), -1 for none."""
     comm = grid.comm
-    num_owned = grid.mesh.topology.index_map(grid.tdim).size_local
     claims = []
     for points in comm.allgather(x):
         cells, _ = locate(grid, points, np.full(len(points), -1, dtype=np.int32))
-        claims.append((cells >= 0) & (cells < num_owned))
+        claims.append((cells >= 0) & (cells < grid.num_owned_cells))
     claimed = np.array(comm.alltoall(claims), dtype=bool).reshape(comm.size, len(x))
     return np.where(claimed.any(axis=0), np.argmax(claimed, axis=0), -1)
 
@@ -82,7 +73,7 @@ def migrate(grid: Grid, particles: Particles, cells: np.ndarray) -> int:
     comm = grid.comm
     dest = np.full(len(cells), comm.rank, dtype=np.int32)
     found = cells >= 0
-    dest[found] = cell_owners(grid)[cells[found]]
+    dest[found] = grid.cell_owner[cells[found]]
     lost = np.flatnonzero(~found)
     if comm.allreduce(lost.size):
         owner = _owners_elsewhere(grid, particles.x[lost])
@@ -156,9 +147,8 @@ class Halo:
             near = np.unravel_index(keys, shape)
             near = np.ravel_multi_index((np.stack(near, -1)[:, None, :] + offsets).reshape(-1, gdim).T, shape)
             self.send.append(np.flatnonzero(np.isin(key, near)))
-        self.size = sum(comm.alltoall([len(s) for s in self.send]))
 
     def gather(self, values: np.ndarray) -> np.ndarray:
-        """The halo's copies of ``values`` (particle axis first), ``shape=(size, ...)``."""
+        """The halo's copies of ``values`` (particle axis first), from all other ranks in turn."""
         received = self.comm.alltoall([values[s] for s in self.send])
         return np.concatenate(received) if received else values[:0]
