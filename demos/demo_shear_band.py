@@ -6,11 +6,12 @@ checks it on the simplest specimen that forms one band: a layer of the paper's s
 H, in a direct-shear box: the bottom plate and the lower parts of the side walls are fixed,
 the top plate and the upper parts move at the speed V.
 
-The layer starts under an isotropic pressure p0. In the row of cells at the split of the box
-the horizontal and out-of-plane stresses are 10 % lower (the imperfection): that row has a
-lower pressure and so a lower strength, q = m p, and yields first, and the band forms along
-it. The side walls impose the jump of velocity across that row; material passes through the
-walls into a sink. The profiles are taken over the middle half of the width.
+The layer starts under an isotropic pressure p0. In a weak layer of fixed thickness at
+mid-height (the same on every mesh, so that only the mesh changes between runs) the
+horizontal and out-of-plane stresses are 10 % lower (the imperfection): that layer has a lower
+pressure and so a lower strength, q = m p, yields first, and the band forms along it. The side
+walls impose the jump of velocity at mid-height; material passes through the walls into a
+sink. The profiles are taken over the middle half of the width.
 
 Three meshes, h, h/2 and h/4, each with the local model (r = 0) and the non-local one. Over
 the second half of the run three profiles across the layer are measured: the applied
@@ -40,7 +41,9 @@ H = 0.02  # layer height and width [m]
 SAND = {"E": 1e6, "nu": 0.3, "rho": 1500.0, "phi": 30.0, "gamma": 1e3, "N": 1.0}  # the paper's
 
 
-def run(cells, radius, weight="cubic", shear=0.05, rate=5.0, p0=1e4, imperfection=0.1, progress=False):
+def run(
+    cells, radius, weight="cubic", shear=0.05, rate=5.0, p0=1e4, imperfection=0.1, weak=2e-3, progress=False
+):
     """Shear a layer of ``cells`` x ``cells`` squares (two triangles each) to the strain ``shear``.
 
     Args:
@@ -50,10 +53,11 @@ def run(cells, radius, weight="cubic", shear=0.05, rate=5.0, p0=1e4, imperfectio
         shear: imposed shear strain at the end, ``rate * t_end``.
         rate: imposed shear rate [1/s] (plate speed / H).
         p0: initial pressure [Pa].
-        imperfection: relative drop of sigma_xx and sigma_zz in the weak row.
+        imperfection: relative drop of sigma_xx and sigma_zz in the weak layer.
+        weak: thickness of the weak layer [m], centred at mid-height.
 
     Returns:
-        dict with the profiles across the layer (bin centres ``y`` relative to the weak row)
+        dict with the profiles across the layer (bin centres ``y`` relative to mid-height)
         and the measured widths [m].
 
     """
@@ -74,15 +78,17 @@ def run(cells, radius, weight="cubic", shear=0.05, rate=5.0, p0=1e4, imperfectio
     sand = dm.DruckerPragerViscoplastic(**SAND)
     P = dm.seed(grid, sand, ppc=4, where=lambda x: (x[0] > 0.0) & (x[0] < H))
     P.sigma[:] = -p0 * np.eye(3)
-    y_weak = 0.5 * H - 0.5 * h  # centre of the row of cells just below mid-height
-    weak = np.abs(P.x[:, 1] - y_weak) < 0.5 * h
-    P.sigma[weak, 0, 0] *= 1.0 - imperfection
-    P.sigma[weak, 2, 2] *= 1.0 - imperfection
+    y_mid = 0.5 * H
+    in_weak = np.abs(P.x[:, 1] - y_mid) < 0.5 * weak
+    P.sigma[in_weak, 0, 0] *= 1.0 - imperfection
+    P.sigma[in_weak, 2, 2] *= 1.0 - imperfection
 
     # ## The box: bottom plate and lower walls fixed, top plate and upper walls at V = rate H
+    # (the wall nodes at mid-height at V / 2)
     V = rate * H
     sides = grid.nodes_where(lambda x: np.isclose(x[0], 0.0) | np.isclose(x[0], H))
-    side_v = np.c_[np.where(grid.node_x[sides, 1] > y_weak, V, 0.0), np.full(len(sides), np.nan)]
+    y_side = grid.node_x[sides, 1]
+    side_v = np.c_[V * np.where(np.isclose(y_side, y_mid), 0.5, y_side > y_mid), np.full(len(sides), np.nan)]
     bcs = [
         dm.VelocityBC(sides, side_v),
         dm.VelocityBC(grid.nodes_where(lambda x: np.isclose(x[1], 0.0)), (0.0, 0.0)),
@@ -126,7 +132,7 @@ def run(cells, radius, weight="cubic", shear=0.05, rate=5.0, p0=1e4, imperfectio
     return {
         "h": h,
         "radius": radius,
-        "y": y - y_weak,
+        "y": y - y_mid,
         "eps_vp": eps,
         "e_vp_bar": e_bar,
         "vx": vx / V,
@@ -179,7 +185,7 @@ def plot(results, path: Path) -> None:
                     ax.plot(f, 1e3 * r["y"], style, label=f"{name}, h = {1e3 * r['h']:.2g} mm")
             ax.set_xlabel(label + (" (normalised)" if key != "vx" else ""))
             ax.grid(alpha=0.3)
-        axes[0].set_ylabel("distance from the weak row [mm]")
+        axes[0].set_ylabel("distance from mid-height [mm]")
         axes[0].set_ylim(-6, 6)
         axes[-1].legend(fontsize=7)
 

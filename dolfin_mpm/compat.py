@@ -168,7 +168,7 @@ def read_mesh(comm, path, gdim: int):
 
         with XDMFFile(comm, str(path), "r") as f:
             return f.read_mesh(name=name)
-    meshio_name, cell_name = _MESHIO_CELLS[gdim]
+    meshio_name = _MESHIO_CELLS[gdim][0]
     cells, x = np.zeros((0, gdim + 1), np.int64), np.zeros((0, gdim))
     if comm.rank == 0:
         import meshio
@@ -183,6 +183,18 @@ def read_mesh(comm, path, gdim: int):
             cells, x = renumber[cells], np.ascontiguousarray(m.points[used, :gdim], dtype=np.float64)
     if comm.bcast(len(cells) == 0, root=0):
         raise ValueError(f"{path}: no {meshio_name} cells for a mesh of dimension {gdim}")
+    return create_mesh(comm, cells, x)
+
+
+def create_mesh(comm, cells: np.ndarray, x: np.ndarray):
+    """A mesh of affine triangles or tetrahedra, partitioned over ``comm`` by DOLFINx.
+
+    ``cells`` (``(num_cells, gdim + 1)`` vertex numbers) and ``x`` (``(num_vertices, gdim)``)
+    may sit on one rank, the others passing empty arrays of those widths.
+    """
+    gdim = x.shape[1]
+    cell_name = _MESHIO_CELLS[gdim][1]
+    cells, x = np.asarray(cells, dtype=np.int64), np.ascontiguousarray(x, dtype=np.float64)
     if _NEW:
         import basix.ufl
 
