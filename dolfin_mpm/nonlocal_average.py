@@ -107,10 +107,10 @@ class NonlocalAverage:
         self.rebuilds += 1
 
     def _pair_list(self, i: np.ndarray, j: np.ndarray, n: int) -> tuple:
-        """Pairs ``(i, j)`` grouped by ``i`` as ``(i, j, offset, U)``.
+        """Pairs ``(i, j)`` grouped by ``i`` as ``(i, j, offset, U)``: ``U`` ``(n, n)`` holds
+        their weights, ``offset`` ``x_ref[i] - x_ref[j]`` (float32, ``(len(i), gdim)``).
 
-        ``U`` ``(n, n)`` holds their weights, ``offset`` ``x_ref[i] - x_ref[j]`` (float32,
-        ``(len(i), gdim)``). The weights are symmetric, each pair is listed once: the average applies
+        The weights are symmetric, each pair is listed once: the average applies
         ``A = I + U + U^T``. Gathers are fastest with native-size indices; the matrix keeps
         its own 32-bit copy.
         """
@@ -154,8 +154,7 @@ class NonlocalAverage:
         cols = np.r_[first + among[:, 0], slot[old][found["j"]]].astype(np.intp)
         order = np.argsort(rows, kind="stable")
         i_old, j_old = self._added[:2]
-        i, j = np.r_[i_old, rows[order]], np.r_[j_old, cols[order]]
-        self._added = self._pair_list(i, j, len(self._slot_ids))
+        self._added = self._pair_list(np.r_[i_old, rows[order]], np.r_[j_old, cols[order]], len(self._slot_ids))
         return slot
 
     # -- the average ------------------------------------------------------------------------------
