@@ -14,7 +14,7 @@ def _clock(seconds: float) -> str:
 
 
 class Progress:
-    """Shows simulated time, steps/s, ETA, particle count and discharged mass.
+    """Shows simulated time, steps/s, ETA, particle count and (if given) discharged mass.
 
     Args:
         t_start, t_end: the span of the run [s].
@@ -41,8 +41,8 @@ class Progress:
         self.steps += 1
         return self.enabled and time.perf_counter() - self.last >= self.every
 
-    def show(self, t: float, particles: int, discharged: float, final: bool = False) -> None:
-        """Redraw the bar or write a log line for simulated time ``t`` [s]."""
+    def show(self, t: float, particles: int, discharged: float | None = None, final: bool = False) -> None:
+        """Redraw the bar or write a log line for simulated time ``t`` [s] (``discharged``: if known)."""
         if not self.enabled:
             return
         now = time.perf_counter()
@@ -51,10 +51,9 @@ class Progress:
         eta = max(self.t_end - t, 0.0) / self.dt / rate if rate > 0 else float("inf")
         span = max(self.t_end - self.t_start, 1e-300)
         fraction = min(max((t - self.t_start) / span, 0.0), 1.0)
-        text = (
-            f"t = {t:.4e} s  {rate:7.1f} steps/s  ETA {_clock(eta)}  particles {particles}  "
-            f"discharged {discharged:.4g} {self.mass_unit}"
-        )
+        text = f"t = {t:.4e} s  {rate:7.1f} steps/s  ETA {_clock(eta)}  particles {particles}"
+        if discharged is not None:
+            text += f"  discharged {discharged:.4g} {self.mass_unit}"
         if self.tty:
             bar = "#" * round(20 * fraction) + "-" * (20 - round(20 * fraction))
             self.stream.write(f"\r[{bar}] {100 * fraction:5.1f}%  {text}" + ("\n" if final else ""))

@@ -5,7 +5,6 @@ in the USL or MUSL variant, with a PIC/FLIP blend for the particle velocities.
 """
 
 import math
-import sys
 import time
 from collections import defaultdict
 from collections.abc import Sequence
@@ -22,6 +21,7 @@ from dolfin_mpm.materials import DruckerPragerViscoplastic, Material, check_rang
 from dolfin_mpm.nonlocal_average import NonlocalAverage
 from dolfin_mpm.parallel import DistributedAverage, migrate
 from dolfin_mpm.particles import Particles, Sink
+from dolfin_mpm.progress import Progress
 from dolfin_mpm.tensor import det, split_velocity_gradient
 from dolfin_mpm.transfer import gradient, internal_force, interpolate, scatter
 
@@ -382,30 +382,25 @@ class Solver:
 
         ``output`` is anything with ``write(solver)`` (see :mod:`dolfin_mpm.io`); it is also
         written at the start and the end. A :class:`SimulationError` stops the run; what was
-        written before stays readable.
+        written before stays readable. ``progress`` (the same on every rank) shows time,
+        steps/s, ETA and the particle count on rank 0.
         """
         check_range("t_end", t_end, self.time, np.inf, closed=(True, False))
         n_steps = math.ceil((t_end - self.time) / self.dt - 1e-9)
         every = max(1, round(output_interval / self.dt)) if output_interval else max(n_steps, 1)
-        show = progress and self.comm.rank == 0
+        bar = Progress(self.time, t_end, self.dt, enabled=progress and self.comm.rank == 0)
         if output is not None:
             output.write(self)
-        t0, last = time.perf_counter(), 0.0
         for k in range(1, n_steps + 1):
             self.step()
             if output is not None and (k % every == 0 or k == n_steps):
                 output.write(self)
-            now = time.perf_counter()
-            if show and (now - last > 1.0 or k == n_steps):
-                last = now
-                rate = k / (now - t0)
-                eta = (n_steps - k) / rate
-                line = (
-                    f"step {self.step_count:7d}  t = {self.time:.4e} s  {rate:7.1f} steps/s  "
-                    f"ETA {eta:6.0f} s  particles {self.num_particles()}"
-                )
-                end = "\r" if sys.stdout.isatty() and k < n_steps else "\n"
-                print(line, end=end, flush=True)
+            if progress:
+                due = bar.due()  # rank 0's clock: all ranks follow it, the count is collective
+                if self.comm.size > 1:
+                    due = self.comm.bcast(due, root=0)
+                if due or k == n_steps:
+                    bar.show(self.time, self.num_particles(), final=k == n_steps)
 
     # -- global diagnostics (summed over ranks) --------------------------------------------------
     def num_particles(self) -> int:

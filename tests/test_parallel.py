@@ -114,3 +114,18 @@ def test_ranks_without_particles_take_part(tmp_path):
     assert n == n1 > 0
     assert p == pytest.approx(p1, rel=1e-12)
     assert e == pytest.approx(e1, rel=1e-12)
+
+
+def test_run_with_progress_on_all_ranks(capsys):
+    """The progress display counts particles on all ranks (a collective) and shows on rank 0."""
+    msh = mesh.create_rectangle(comm, [np.zeros(2), np.ones(2)], [8, 8], mesh.CellType.triangle)
+    grid = dm.Grid(msh)
+    mat = dm.LinearElastic(E=1e5, nu=0.3, rho=1000.0)
+    solver = dm.Solver(grid, dm.seed(grid, mat, ppc=1), mat, dt=1e-3)
+    solver.run(0.02, progress=True)
+    out, n = capsys.readouterr().out, solver.num_particles()
+    assert solver.step_count == 20
+    if comm.rank == 0:
+        assert f"particles {n}" in out.splitlines()[-1]
+    else:
+        assert out == ""
