@@ -5,55 +5,48 @@
 over all particles within the radius ``r`` (a circle in 2D, a sphere in 3D), self included.
 Neighbour pairs come from scipy's KD-tree for the radius plus a skin and are kept while no
 particle has moved more than half the skin since they were found (the Verlet-list idea of
-molecular dynamics); weights are recomputed on the kept pairs every step. The distances are
-the pair offsets at the last rebuild plus the displacements since, in single precision: this
-halves the memory traffic of the refresh, the costliest part of the non-local step, and keeps
-the weights to ~1e-6 (the coordinates enter only through the offsets, so the size of the
-domain does not matter). The refresh runs over blocks of pairs small enough for the CPU cache,
-so that its chain of element-wise operations does not stream every intermediate through memory.
+molecular dynamics); weights are recomputed on the kept pairs every step, in double precision
+from the current positions. The set of particles may change between steps without a rebuild:
+a removed particle (a sink, or one that moved to another rank) keeps a dead slot until the
+next rebuild, and a particle that arrives (from another rank, or into the halo of another
+rank's particles) gets a slot and its pairs from a search around it alone. Once particles have
+arrived the rebuild comes at a third of the skin: pairs found at different times stay
+complete for that long.
+
+The two passes over the pairs, weights and the symmetric product, are compiled C
+(``nonlocal_average.c``): each is one loop over ~10^7 pairs a step, where numpy would stream
+every intermediate through memory.
 """
 
-from collections.abc import Callable
+import ctypes
+import functools
+from pathlib import Path
 
 import numpy as np
-from scipy.sparse import csr_matrix
+from scipy.sparse import coo_matrix
 from scipy.spatial import cKDTree
 
+from dolfin_mpm import native
 from dolfin_mpm.materials.base import check_range
 
 __all__ = ["WEIGHTS", "NonlocalAverage"]
 
-#: Pairs per block of the weight refresh: its float32 scratch (< 1 MB) stays in cache.
-PAIR_BLOCK = 32768
+#: The weights w(s), s = distance / r, zero for s >= 1: ``1 + s^2 (2s - 3)``, ``1`` and
+#: ``exp(-2.5 s^2)``; the value is the kernel's code for each.
+WEIGHTS = {"cubic": 0, "constant": 1, "gaussian": 2}
+
+_INDEX, _REAL = native.array(np.int32), native.array(np.float64)
+_SIGNATURES = {
+    "pair_weights": (
+        ctypes.c_int64, ctypes.c_int32, _REAL, _INDEX, _INDEX, ctypes.c_double, ctypes.c_int32, _REAL,
+    ),
+    "pair_apply": (ctypes.c_int64, ctypes.c_int64, _INDEX, _INDEX, _REAL, _REAL, _REAL),
+}  # fmt: skip
 
 
-def _cubic(t: np.ndarray, out: np.ndarray) -> np.ndarray:
-    # (1 - t)^2 (1 + 2t) = 1 + t^2 (2t - 3), without the cancellation near t = 1
-    np.multiply(t, 2.0, out=out)
-    out += 1.0
-    out *= np.square(1.0 - t)
-    return out
-
-
-def _constant(t: np.ndarray, out: np.ndarray) -> np.ndarray:
-    return np.less(t, 1.0, out=out)
-
-
-def _gaussian(t: np.ndarray, out: np.ndarray) -> np.ndarray:
-    np.multiply(t, t, out=out)
-    out *= -2.5
-    np.exp(out, out=out)
-    out *= t < 1.0
-    return out
-
-
-#: Weights ``w(t, out)`` of ``t = min(s, 1)``, ``s = distance / r``, written into ``out``:
-#: ``1 + t^2 (2t - 3)``, ``1`` and ``exp(-2.5 t^2)`` inside the ball, zero at ``t = 1`` (outside).
-WEIGHTS: dict[str, Callable[[np.ndarray, np.ndarray], np.ndarray]] = {
-    "cubic": _cubic,
-    "constant": _constant,
-    "gaussian": _gaussian,
-}
+@functools.cache
+def _kernels() -> ctypes.CDLL:
+    return native.load(Path(__file__).with_suffix(".c"), _SIGNATURES)
 
 
 class NonlocalAverage:
@@ -73,127 +66,191 @@ class NonlocalAverage:
         skin = 0.25 * radius if skin is None else skin
         check_range("skin", skin, 0.0, np.inf, closed=(True, False))
         self.radius, self.weight, self.skin = float(radius), weight, float(skin)
-        self._w = WEIGHTS[weight]
-        self._ids = None
+        self._slot_ids, self._w = None, np.zeros(0)
         self.rebuilds = 0
+        if not self.is_local:
+            _kernels()  # compiled now, before any long work
 
     @property
     def is_local(self) -> bool:
         return self.radius == 0.0
 
+    # -- slots: every particle the pair list knows, in the order it became known -------------------
+    # Slots ``[0, base)`` are the particles of the last rebuild, the first ``base_pairs`` pairs
+    # theirs; later slots arrived since, their pairs (with any slot) appended. ``x_ref`` is each
+    # slot's position when its pairs were found, ``x_slot`` its position now (dead slots keep
+    # their last one); ``live`` is False for removed particles. The caller's particles map to
+    # their slots through ``slot``. Pairs ``(i, j)`` are int32, each unordered pair once.
+
     def _rebuild(self, x: np.ndarray, ids: np.ndarray) -> None:
+        n = len(x)
         pairs = cKDTree(x).query_pairs(self.radius + self.skin, output_type="ndarray")
-        # Grouped by row, as CSR needs; columns stay unsorted within a row, and as nothing
-        # sorts U, its data keeps the order of the pairs.
-        order = np.argsort(pairs[:, 0].astype(np.int32), kind="stable")
-        i, j = np.ascontiguousarray(pairs.take(order, axis=0).T)
-        offset = (x.take(i, axis=0) - x.take(j, axis=0)).astype(np.float32)
-        self._set_pairs(i, j, offset, x.shape[0])
-        self._x_built, self._ids = x.copy(), ids.copy()
-        self._built_from = (self._x_built, self._ids)  # kept by _drop_removed, for state()
+        # Rows in order, columns sorted within a row: the weights' gathers then walk through
+        # memory (2-3x faster than in the KD-tree's order).
+        found = np.ones(len(pairs), dtype=np.int8)
+        rows = coo_matrix((found, (pairs[:, 0], pairs[:, 1])), shape=(n, n)).tocsr()
+        rows.sort_indices()
+        self._i = np.repeat(np.arange(n, dtype=np.int32), np.diff(rows.indptr))
+        self._j = rows.indices.astype(np.int32, copy=False)
+        self._slot_ids, self._x_ref, self._base, self._base_pairs = ids.copy(), x.copy(), n, len(pairs)
+        self._x_slot = x.copy()
+        self._set_live(np.arange(len(ids)), ids)
         self.rebuilds += 1
 
-    def _set_pairs(self, i: np.ndarray, j: np.ndarray, offset: np.ndarray, n: int) -> None:
-        """Store the pairs ``i < j``, grouped by ``i``, as the sparsity of ``U``.
+    def _set_live(self, slot: np.ndarray, ids: np.ndarray) -> None:
+        """The caller's particles ``ids`` are the slots ``slot``; every other slot is dead."""
+        self._live = np.zeros(len(self._slot_ids), dtype=bool)
+        self._live[slot] = True
+        self._slot, self._ids = slot, ids.copy()
+        order = np.argsort(ids, kind="stable")
+        self._sorted_ids, self._sorted_slots = ids[order], slot[order]
+        n = len(self._slot_ids)
+        self._identity = len(slot) == n and np.array_equal(slot, np.arange(n))
 
-        The weights are symmetric: ``A = U + U^T + I`` with ``U`` the strictly upper triangle,
-        whose sparsity stays fixed between rebuilds (only its values change each step).
-        ``offset`` holds ``x_i - x_j`` at the rebuild, ``shape=(len(i), gdim)``.
-        """
-        # Gathers are fastest with native-size indices; the matrix keeps its own 32-bit copy.
-        self._i, self._j, self._offset = i.astype(np.intp), j.astype(np.intp), offset
-        indptr = np.r_[0, np.cumsum(np.bincount(self._i, minlength=n))].astype(np.int32)
-        self._U = csr_matrix((np.zeros(len(i)), j.astype(np.int32), indptr), shape=(n, n))
+    def _slots_of(self, ids: np.ndarray) -> np.ndarray:
+        """Live slot of each of ``ids``, -1 for particles not known (or removed) since."""
+        if len(self._sorted_ids) == 0:
+            return np.full(len(ids), -1, dtype=np.intp)
+        k = np.minimum(np.searchsorted(self._sorted_ids, ids), len(self._sorted_ids) - 1)
+        slot = self._sorted_slots[k]
+        return np.where((self._sorted_ids[k] == ids) & self._live[slot], slot, -1)
 
-    def _drop_removed(self, ids: np.ndarray) -> bool:
-        """Keep the pairs of the particles still present, when ``ids`` only lost some, in order."""
-        if not 0 < len(ids) <= len(self._ids):
-            return False
-        old = np.minimum(np.searchsorted(self._ids, ids), len(self._ids) - 1)
-        if not (np.array_equal(self._ids[old], ids) and np.all(np.diff(old) > 0)):
-            return False
-        new_index = np.full(len(self._ids), -1, dtype=np.int64)
-        new_index[old] = np.arange(len(ids))
-        i, j = new_index[self._i], new_index[self._j]
-        both = (i >= 0) & (j >= 0)
-        self._set_pairs(i[both], j[both], self._offset[both], len(ids))  # still grouped by i
-        self._x_built, self._ids = self._x_built[old], ids.copy()
-        return True
+    def _add_slots(self, ids: np.ndarray, x: np.ndarray) -> None:
+        self._slot_ids = np.r_[self._slot_ids, ids]
+        self._x_ref = np.r_[self._x_ref, x]
+        self._x_slot = np.r_[self._x_slot, x]
 
+    def _add_pairs(self, i: np.ndarray, j: np.ndarray) -> None:
+        self._i = np.r_[self._i, i.astype(np.int32)]
+        self._j = np.r_[self._j, j.astype(np.int32)]
+
+    def _add(self, x: np.ndarray, slot: np.ndarray, ids: np.ndarray) -> np.ndarray:
+        """Slots and pairs for the particles with ``slot == -1``; returns the completed ``slot``."""
+        new = slot < 0
+        first, m = len(self._slot_ids), int(new.sum())
+        slot = slot.copy()
+        slot[new] = first + np.arange(m)
+        self._add_slots(ids[new], x[new])
+        reach = self.radius + self.skin
+        among = cKDTree(x[new]).query_pairs(reach, output_type="ndarray")
+        old = np.flatnonzero(~new)
+        old = old[_near(x[new], x[old], reach)]
+        found = cKDTree(x[new]).sparse_distance_matrix(cKDTree(x[old]), reach, output_type="ndarray")
+        rows = np.r_[first + among[:, 1], first + found["i"]]
+        cols = np.r_[first + among[:, 0], slot[old][found["j"]]]
+        order = np.argsort(rows, kind="stable")
+        self._add_pairs(rows[order], cols[order])
+        return slot
+
+    # -- the average ------------------------------------------------------------------------------
     def state(self) -> dict[str, np.ndarray]:
         """What rebuilds the kept pair list exactly (empty before the first update).
 
-        Positions ``(m, gdim)`` and ids at the last rebuild, the ids now (fewer if particles
-        were removed since) and the rebuild count.
+        Positions ``(m, gdim)`` and ids at the last rebuild, the ids now (those still present
+        and those that arrived since), the rebuild count and, if particles arrived since the
+        rebuild, their slots' ids and positions and their pairs.
         """
-        if self._ids is None:
+        if self._slot_ids is None:
             return {}
-        x_built, ids_built = self._built_from
-        return {
-            "x_built": x_built,
-            "ids_built": ids_built,
+        b = self._base
+        state = {
+            "x_built": self._x_ref[:b],
+            "ids_built": self._slot_ids[:b],
             "ids": self._ids,
             "rebuilds": np.array(self.rebuilds),
         }
+        if len(self._slot_ids) > b:
+            added = np.c_[self._i[self._base_pairs :], self._j[self._base_pairs :]]
+            state.update(ids_added=self._slot_ids[b:], x_added=self._x_ref[b:], pairs_added=added)
+        return state
 
     def restore(self, state: dict[str, np.ndarray]) -> None:
         """Rebuild the pair list of :meth:`state`: same pairs in the same order, bit for bit."""
         if not state:
-            self._ids = None
+            self._slot_ids = None
             return
         self._rebuild(np.ascontiguousarray(state["x_built"]), np.asarray(state["ids_built"]))
+        if "ids_added" in state:
+            self._add_slots(np.asarray(state["ids_added"]), np.asarray(state["x_added"]))
+            self._add_pairs(*np.asarray(state["pairs_added"]).T)
         ids = np.asarray(state["ids"])
-        if not (np.array_equal(ids, self._ids) or self._drop_removed(ids)):
-            raise ValueError("state: the particle ids are not those of the last rebuild minus removed ones")
+        self._set_live(np.arange(len(self._slot_ids)), self._slot_ids)
+        slot = self._slots_of(ids)
+        if np.any(slot < 0):
+            raise ValueError("state: particle ids now that the pair list does not know")
+        self._set_live(slot, ids)
         self.rebuilds = int(state["rebuilds"])
 
     def update(self, x: np.ndarray, volume: np.ndarray, ids: np.ndarray) -> None:
         """Weights for the current positions ``x`` (``(n, gdim)``) and volumes ``(n,)``.
 
-        ``ids`` (``(n,)``) identify the particles: the pair list is rebuilt when
-        particles were added or reordered, or when one has moved more than half the skin since
-        the last rebuild; particles that were removed (sinks) only drop their pairs.
+        ``ids`` (``(n,)``) identify the particles, in any order. The pair list is rebuilt when
+        a particle has moved more than half the skin since the last rebuild (a third, once
+        particles have arrived since), or when the removed ones outnumber a quarter of those
+        present; removed particles only lose their slot, arrived ones get one.
         """
         if self.is_local:
             return
-        x = np.ascontiguousarray(x)
-        kept = self._ids is not None and (np.array_equal(ids, self._ids) or self._drop_removed(ids))
-        u = x - self._x_built if kept else None  # displacements since the last rebuild
-        if u is None or np.max(np.sum(u * u, axis=1), initial=0.0) > (0.5 * self.skin) ** 2:
+        x = np.ascontiguousarray(x, dtype=np.float64)
+        if self._slot_ids is None:
             self._rebuild(x, ids)
-            u = np.zeros_like(x)
-        self._refresh_weights(u.astype(np.float32))
+        else:
+            slot = self._slot if np.array_equal(ids, self._ids) else self._slots_of(ids)
+            known = slot >= 0
+            u = x[known] - self._x_ref[slot[known]]
+            arrived = len(self._slot_ids) > self._base or not known.all()
+            limit = self.skin / 3.0 if arrived else 0.5 * self.skin
+            dead = len(self._slot_ids) - known.sum()
+            if np.max(np.sum(u * u, axis=1), initial=0.0) > limit**2 or dead > 0.25 * len(ids):
+                self._rebuild(x, ids)
+            elif slot is not self._slot:
+                if not known.all():
+                    slot = self._add(x, slot, ids)
+                self._set_live(slot, ids)
+        self._x_slot[self._slot] = x
+        if len(self._w) != len(self._i):
+            self._w = np.empty(len(self._i))
+        _kernels().pair_weights(
+            len(self._i), x.shape[1], self._x_slot, self._i, self._j, 1.0 / self.radius,
+            WEIGHTS[self.weight], self._w,
+        )  # fmt: skip
         self._volume = volume
         self._denominator = self._apply(volume)
 
-    def _refresh_weights(self, u: np.ndarray) -> None:
-        """``U``'s values from the displacements ``u`` since the rebuild, ``shape=(n, gdim)`` float32.
-
-        Block by block of pairs: ``s = |offset + u_i - u_j| / r``, ``U_ij = w(min(s, 1))``.
-        """
-        m, gdim = len(self._i), u.shape[1]
-        d_buf, dj_buf = np.empty((2, min(PAIR_BLOCK, m), gdim), dtype=np.float32)
-        s_buf, w_buf = np.empty((2, min(PAIR_BLOCK, m)), dtype=np.float32)
-        inv_r = np.float32(1.0 / self.radius)
-        for a in range(0, m, PAIR_BLOCK):
-            b = min(a + PAIR_BLOCK, m)
-            d, d_j, s = d_buf[: b - a], dj_buf[: b - a], s_buf[: b - a]
-            np.take(u, self._i[a:b], axis=0, out=d, mode="clip")  # "clip": no buffered copy
-            d -= np.take(u, self._j[a:b], axis=0, out=d_j, mode="clip")
-            d += self._offset[a:b]
-            d *= d
-            for c in range(1, gdim):
-                d[:, 0] += d[:, c]
-            np.sqrt(d[:, 0], out=s)
-            s *= inv_r
-            np.minimum(s, 1.0, out=s)
-            self._U.data[a:b] = self._w(s, w_buf[: b - a])
+    def _slot_field(self, v: np.ndarray) -> np.ndarray:
+        """The caller's particle field ``v`` on the slots, zero on the dead ones."""
+        if self._identity:
+            return np.ascontiguousarray(v, dtype=np.float64)
+        y = np.zeros(len(self._slot_ids))
+        y[self._slot] = v
+        return y
 
     def _apply(self, v: np.ndarray) -> np.ndarray:
-        return v + self._U @ v + self._U.T @ v
+        """``A v`` for a field ``v`` of the caller's particles (dead slots hold zero)."""
+        y = self._slot_field(v)
+        z = np.empty_like(y)
+        _kernels().pair_apply(len(y), len(self._i), self._i, self._j, self._w, y, z)
+        return z if self._identity else z[self._slot]
 
     def __call__(self, e: np.ndarray) -> np.ndarray:
         """The average of the field ``e`` (``shape=(n,)``) with the weights of the last update."""
         if self.is_local:
             return e
         return self._apply(self._volume * e) / self._denominator
+
+
+def _near(points: np.ndarray, others: np.ndarray, distance: float) -> np.ndarray:
+    """Mask of ``others`` in the cubes of side ``distance`` holding or next to one of ``points``.
+
+    A superset of the ``others`` within ``distance`` of a point; both ``shape=(n, gdim)``.
+    """
+    if len(points) == 0 or len(others) == 0:
+        return np.zeros(len(others), dtype=bool)
+    lo = np.minimum(points.min(axis=0), others.min(axis=0))
+    hi = np.maximum(points.max(axis=0), others.max(axis=0))
+    shape = np.floor((hi - lo) / distance).astype(np.int64) + 3
+    cube = lambda y: np.floor((y - lo) / distance).astype(np.int64) + 1  # noqa: E731
+    gdim = points.shape[1]
+    offsets = np.stack(np.meshgrid(*[[-1, 0, 1]] * gdim, indexing="ij"), -1).reshape(-1, gdim)
+    near = np.unique(np.ravel_multi_index((cube(points)[:, None, :] + offsets).reshape(-1, gdim).T, shape))
+    return np.isin(np.ravel_multi_index(cube(others).T, shape), near)

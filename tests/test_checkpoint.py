@@ -195,22 +195,23 @@ def test_a_failed_checkpoint_write_keeps_the_last_one(scenario_file, tmp_path, m
     assert _step_of(folder / "checkpoint.h5") > 0 and not (folder / "checkpoint.h5.tmp").exists()
 
 
-def test_nonlocal_state_restores_the_kept_pairs_after_removals():
-    """Pairs kept since a rebuild, minus absorbed particles: restored in the same order."""
+def test_nonlocal_state_restores_the_kept_pairs_after_removals_and_arrivals():
+    """Pairs kept since a rebuild, minus absorbed particles, plus arrived ones: restored exactly."""
     rng = np.random.default_rng(1)
-    x, volume, ids = rng.random((400, 2)), rng.random(400), np.arange(400)
+    x, volume, ids = rng.random((440, 2)), rng.random(440), np.arange(440)
     avg = NonlocalAverage(0.1)
-    avg.update(x, volume, ids)
-    keep = rng.random(400) > 0.2  # a sink takes some
-    x = x[keep] + 1e-4 * rng.standard_normal((keep.sum(), 2))  # within the skin: pairs kept
-    avg.update(x, volume[keep], ids[keep])
+    avg.update(x[:400], volume[:400], ids[:400])
+    present = np.r_[rng.random(400) > 0.1, np.ones(40, dtype=bool)]  # a sink takes some, 40 arrive
+    x = x[present] + 1e-4 * rng.standard_normal((present.sum(), 2))  # within the skin: pairs kept
+    avg.update(x, volume[present], ids[present])
     restored = NonlocalAverage(0.1)
     restored.restore(avg.state())
-    assert len(avg.state()["ids"]) < len(avg.state()["ids_built"])
+    state = avg.state()
+    assert len(state["ids_added"]) == 40 and np.isin(state["ids_built"], state["ids"]).sum() < 400
     x = x + 1e-4 * rng.standard_normal(x.shape)
     e = rng.random(len(x))
     for a in (avg, restored):
-        a.update(x, volume[keep], ids[keep])
+        a.update(x, volume[present], ids[present])
     assert np.array_equal(avg(e), restored(e)) and avg.rebuilds == restored.rebuilds == 1
 
 

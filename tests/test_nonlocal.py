@@ -5,13 +5,20 @@ import pytest
 
 from dolfin_mpm.nonlocal_average import WEIGHTS, NonlocalAverage
 
-#: The weights are refreshed in single precision (see the module's docstring); fields here lie in [0, 1].
-ATOL = 1e-6
+#: Weights in double precision from the positions; fields here lie in [0, 1].
+ATOL = 1e-12
+
+#: The paper's weights of s = distance / r, inside the ball.
+PAPER_WEIGHTS = {
+    "cubic": lambda s: 1.0 + s**2 * (2.0 * s - 3.0),
+    "constant": lambda s: np.ones_like(s),
+    "gaussian": lambda s: np.exp(-2.5 * s**2),
+}
 
 
 def brute_force(x, volume, e, r, weight):
-    d = np.linalg.norm(x[:, None, :] - x[None, :, :], axis=2) / r
-    w = WEIGHTS[weight](np.minimum(d, 1.0), np.empty_like(d)) * volume[None, :]
+    s = np.linalg.norm(x[:, None, :] - x[None, :, :], axis=2) / r
+    w = np.where(s < 1.0, PAPER_WEIGHTS[weight](s), 0.0) * volume[None, :]
     return (w @ e) / w.sum(axis=1)
 
 
@@ -46,11 +53,17 @@ def test_uniform_field_and_normalisation(weight):
 
 
 def test_weight_functions():
-    t = np.array([0.0, 0.5, 0.9, 1.0])  # t = 1: outside the ball
-    w = {name: f(t, np.empty_like(t)) for name, f in WEIGHTS.items()}
-    assert np.allclose(w["cubic"], [1.0, 0.5, 1.0 + 0.81 * (1.8 - 3.0), 0.0])
-    assert np.allclose(w["gaussian"], [1.0, np.exp(-0.625), np.exp(-2.025), 0.0])
-    assert np.allclose(w["constant"], [1.0, 1.0, 1.0, 0.0])
+    """Two particles of equal volume at s = distance / r: the first's average of (1, 0) is 1 / (1 + w(s))."""
+    w = {}
+    for name in WEIGHTS:
+        avg = NonlocalAverage(1.0, name)
+        w[name] = []
+        for s in (0.0, 0.5, 0.9, 1.0, 1.1):  # s >= 1: outside the ball
+            avg.update(np.array([[0.0, 0.0], [s, 0.0]]), np.ones(2), np.arange(2) + 10 * len(w[name]))
+            w[name].append(1.0 / avg(np.array([1.0, 0.0]))[0] - 1.0)
+    assert np.allclose(w["cubic"], [1.0, 0.5, 1.0 + 0.81 * (1.8 - 3.0), 0.0, 0.0], rtol=0.0, atol=1e-15)
+    assert np.allclose(w["gaussian"], [1.0, np.exp(-0.625), np.exp(-2.025), 0.0, 0.0], rtol=0.0, atol=1e-15)
+    assert np.allclose(w["constant"], [1.0, 1.0, 1.0, 0.0, 0.0], rtol=0.0, atol=1e-15)
 
 
 def test_skin_reuse_equals_fresh_rebuild():
@@ -69,16 +82,41 @@ def test_skin_reuse_equals_fresh_rebuild():
     x = x + 0.05  # a large move forces a rebuild
     kept.update(x, volume, ids)
     assert kept.rebuilds == 2
-    # Removed particles (sinks) only drop their pairs; added or reordered ones force a rebuild.
+    # Removed, reordered and arrived particles keep the pair list: no rebuild, same averages.
     gone = rng.random(len(x)) < 0.1
-    kept.update(x[~gone], volume[~gone], ids[~gone])
-    fresh = NonlocalAverage(0.1, "cubic", skin=0.0)
-    fresh.update(x[~gone], volume[~gone], ids[~gone])
-    assert kept.rebuilds == 2 and np.allclose(kept(e[~gone]), fresh(e[~gone]), rtol=0.0, atol=ATOL)
-    kept.update(x[::-1], volume[::-1], ids[::-1])
-    assert kept.rebuilds == 3
+    for select in (~gone, np.flatnonzero(~gone)[::-1], rng.permutation(len(x))):
+        kept.update(x[select], volume[select], ids[select])
+        fresh = NonlocalAverage(0.1, "cubic", skin=0.0)
+        fresh.update(x[select], volume[select], ids[select])
+        assert np.allclose(kept(e[select]), fresh(e[select]), rtol=0.0, atol=ATOL)
+    assert kept.rebuilds == 2
+    # Once particles have arrived, pairs found at different times: the rebuild comes at a
+    # third of the skin (0.0133 here), not at half of it.
+    x[:, 0] += 0.015
     kept.update(x, volume, ids)
-    assert kept.rebuilds == 4
+    assert kept.rebuilds == 3
+    x[:, 0] += 0.015
+    kept.update(x, volume, ids)
+    assert kept.rebuilds == 3
+
+
+def test_arrivals_in_small_batches_equal_a_fresh_rebuild():
+    """As under MPI: particles come and go each step while all move; 3D, every weight."""
+    rng = np.random.default_rng(5)
+    x, volume, e = cloud(800, 3, seed=6)
+    ids = np.arange(len(x))
+    for weight in WEIGHTS:
+        kept = NonlocalAverage(0.2, weight, skin=0.06)
+        present = rng.random(len(x)) < 0.7
+        for _ in range(6):
+            x = x + rng.uniform(-0.001, 0.001, x.shape)  # within a third of the skin in all
+            present ^= rng.random(len(x)) < 0.03  # some leave, some (back) in
+            select = rng.permutation(np.flatnonzero(present))
+            kept.update(x[select], volume[select], ids[select])
+            fresh = NonlocalAverage(0.2, weight, skin=0.0)
+            fresh.update(x[select], volume[select], ids[select])
+            assert np.allclose(kept(e[select]), fresh(e[select]), rtol=0.0, atol=ATOL)
+        assert kept.rebuilds == 1
 
 
 def test_local_switch_and_bad_input():

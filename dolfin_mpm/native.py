@@ -1,0 +1,78 @@
+"""Compiled kernels: C sources shipped beside the modules that use them, loaded with ctypes.
+
+A source is compiled once per machine with the C compiler that DOLFINx's own just-in-time
+compilation needs anyway (``$CC``, default ``cc``), into a cache folder
+(``$DOLFIN_MPM_CACHE_DIR``, else ``$XDG_CACHE_HOME/dolfin_mpm`` or ``~/.cache/dolfin_mpm``).
+The library's name carries a hash of the source, compiler and flags, so an edited source is
+rebuilt; it is written under a temporary name and renamed, so MPI ranks that compile at the
+same time never load a half-written file. No fast-math: results are IEEE arithmetic, the same
+on every rank.
+"""
+
+import ctypes
+import hashlib
+import os
+import platform
+import shlex
+import subprocess
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["array", "cache_dir", "load"]
+
+FLAGS = ("-O3", "-std=c99", "-fPIC", "-shared")
+
+_loaded: dict[str, ctypes.CDLL] = {}
+
+
+def cache_dir() -> Path:
+    """The folder of the compiled libraries."""
+    if "DOLFIN_MPM_CACHE_DIR" in os.environ:
+        return Path(os.environ["DOLFIN_MPM_CACHE_DIR"])
+    return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "dolfin_mpm"
+
+
+def load(source: Path, signatures: dict[str, tuple]) -> ctypes.CDLL:
+    """The library compiled from the C file ``source``, its functions typed by ``signatures``.
+
+    ``signatures`` maps each function name to its ctypes argument types (all return void).
+    Raises ``RuntimeError`` with the compiler's output when compiling fails.
+    """
+    compiler = shlex.split(os.environ.get("CC", "cc"))
+    text = source.read_bytes()
+    key = hashlib.sha256(b"\0".join([text, *map(str.encode, [*compiler, *FLAGS, platform.machine()])]))
+    library = cache_dir() / f"{source.stem}-{key.hexdigest()[:16]}.so"
+    if str(library) not in _loaded:
+        if not library.exists():
+            _compile(compiler, source, library)
+        lib = ctypes.CDLL(str(library))
+        for name, argtypes in signatures.items():
+            getattr(lib, name).argtypes, getattr(lib, name).restype = argtypes, None
+        _loaded[str(library)] = lib
+    return _loaded[str(library)]
+
+
+def _compile(compiler: list[str], source: Path, library: Path) -> None:
+    library.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(suffix=".so", dir=library.parent)
+    os.close(fd)
+    try:
+        done = subprocess.run(
+            [*compiler, *FLAGS, str(source), "-o", tmp, "-lm"], capture_output=True, text=True
+        )
+        error = done.stderr if done.returncode else None
+    except FileNotFoundError as e:
+        error = str(e)
+    if error is None:
+        os.replace(tmp, library)
+    else:
+        os.remove(tmp)
+        what = f"compiling {source.name} with {' '.join(compiler)} failed"
+        raise RuntimeError(f"{what} (set CC to a C compiler):\n{error}")
+
+
+def array(dtype) -> type:
+    """The ctypes argument type of a C-contiguous numpy array of ``dtype``."""
+    return np.ctypeslib.ndpointer(dtype=dtype, flags="C_CONTIGUOUS")

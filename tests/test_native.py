@@ -1,0 +1,31 @@
+import ctypes
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dolfin_mpm import native
+
+
+def test_compiled_once_into_the_cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("DOLFIN_MPM_CACHE_DIR", str(tmp_path / "cache"))
+    source = tmp_path / "twice.c"
+    source.write_text("void twice(long n, double *v) { for (long k = 0; k < n; ++k) v[k] *= 2.0; }\n")
+    signature = {"twice": (ctypes.c_long, native.array(np.float64))}
+    lib = native.load(source, signature)
+    v = np.arange(3.0)
+    lib.twice(3, v)
+    assert np.array_equal(v, [0.0, 2.0, 4.0]) and len(list((tmp_path / "cache").glob("twice-*.so"))) == 1
+    assert native.load(source, signature) is lib
+    with pytest.raises(ctypes.ArgumentError):  # the argument types are checked
+        lib.twice(3, np.arange(3))
+
+
+@pytest.mark.parametrize("compiler", ["false", "no-such-compiler-anywhere"])
+def test_a_failing_compiler_is_named(tmp_path, monkeypatch, compiler):
+    monkeypatch.setenv("DOLFIN_MPM_CACHE_DIR", str(tmp_path))
+    monkeypatch.setenv("CC", compiler)
+    source = Path(native.__file__).with_name("nonlocal_average.c")
+    with pytest.raises(RuntimeError, match=f"nonlocal_average.c with {compiler} failed.*set CC"):
+        native.load(source, {})
+    assert list(tmp_path.iterdir()) == []  # no half-written library left
