@@ -90,3 +90,30 @@ void pair_apply(int64_t n, int64_t m, const int32_t *restrict i, const int32_t *
     out[a] += sum0 + sum1;
   }
 }
+
+/* Stable counting sort of the pairs (key[k], other[k]) by key, into sorted_key and sorted_other. */
+static void counting_sort(int64_t n, int64_t m, const int32_t *key, const int32_t *other,
+                          int32_t *sorted_key, int32_t *sorted_other, int64_t *start)
+{
+  for (int64_t a = 0; a <= n; ++a)
+    start[a] = 0;
+  for (int64_t k = 0; k < m; ++k)
+    ++start[key[k] + 1];
+  for (int64_t a = 0; a < n; ++a)
+    start[a + 1] += start[a];
+  for (int64_t k = 0; k < m; ++k)
+  {
+    const int64_t to = start[key[k]]++;
+    sorted_key[to] = key[k];
+    sorted_other[to] = other[k];
+  }
+}
+
+/* Sorts the pairs (i[k], j[k]) of particles 0..n-1 in place by i, then j: two counting sorts,
+ * by j then (stably) by i, through the scratch arrays (m each, and n + 1 for start). */
+void pair_sort(int64_t n, int64_t m, int32_t *i, int32_t *j, int32_t *scratch_i, int32_t *scratch_j,
+               int64_t *start)
+{
+  counting_sort(n, m, j, i, scratch_j, scratch_i, start);
+  counting_sort(n, m, scratch_i, scratch_j, i, j, start);
+}

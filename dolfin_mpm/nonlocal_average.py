@@ -23,7 +23,6 @@ import functools
 from pathlib import Path
 
 import numpy as np
-from scipy.sparse import coo_matrix
 from scipy.spatial import cKDTree
 
 from dolfin_mpm import native
@@ -41,6 +40,7 @@ _SIGNATURES = {
         ctypes.c_int64, ctypes.c_int32, _REAL, _INDEX, _INDEX, ctypes.c_double, ctypes.c_int32, _REAL,
     ),
     "pair_apply": (ctypes.c_int64, ctypes.c_int64, _INDEX, _INDEX, _REAL, _REAL, _REAL),
+    "pair_sort": (ctypes.c_int64, ctypes.c_int64, _INDEX, _INDEX, _INDEX, _INDEX, native.array(np.int64)),
 }  # fmt: skip
 
 
@@ -87,12 +87,11 @@ class NonlocalAverage:
         pairs = cKDTree(x).query_pairs(self.radius + self.skin, output_type="ndarray")
         # Rows in order, columns sorted within a row: the weights' gathers then walk through
         # memory (2-3x faster than in the KD-tree's order).
-        found = np.ones(len(pairs), dtype=np.int8)
-        rows = coo_matrix((found, (pairs[:, 0], pairs[:, 1])), shape=(n, n)).tocsr()
-        rows.sort_indices()
-        self._i = np.repeat(np.arange(n, dtype=np.int32), np.diff(rows.indptr))
-        self._j = rows.indices.astype(np.int32, copy=False)
-        self._slot_ids, self._x_ref, self._base, self._base_pairs = ids.copy(), x.copy(), n, len(pairs)
+        m = len(pairs)
+        self._i, self._j = np.ascontiguousarray(pairs.T, dtype=np.int32)
+        scratch = np.empty((2, m), dtype=np.int32)
+        _kernels().pair_sort(n, m, self._i, self._j, scratch[0], scratch[1], np.empty(n + 1, dtype=np.int64))
+        self._slot_ids, self._x_ref, self._base, self._base_pairs = ids.copy(), x.copy(), n, m
         self._x_slot = x.copy()
         self._set_live(np.arange(len(ids)), ids)
         self.rebuilds += 1
