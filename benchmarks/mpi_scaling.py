@@ -10,6 +10,11 @@ rank count:
 
     mpirun -n 1 python benchmarks/mpi_scaling.py
     mpirun -n 2 python benchmarks/mpi_scaling.py
+    mpirun -n 2 python benchmarks/mpi_scaling.py --independent
+
+``--independent`` runs the whole one-rank silo on every rank at once, each on its own: no
+communication and perfect balance, so ``N t(1 rank alone) / t(N side by side)`` is the most
+the machine's shared memory bandwidth and clocks allow N ranks to gain.
 """
 
 import argparse
@@ -28,8 +33,8 @@ sys.path.insert(0, str(Path(__file__).parents[1] / "demos"))
 import demo_silo
 
 
-def measure(h: float, warmup: int, steps: int) -> dict:
-    comm = MPI.COMM_WORLD
+def measure(h: float, warmup: int, steps: int, comm: MPI.Comm) -> dict:
+    """Timings of one run on ``comm``; barriers and maxima over all ranks of COMM_WORLD."""
     solver, gate = demo_silo.build(h=h, radius=2 * h, comm=comm)
     solver.bcs = [bc for bc in solver.bcs if bc is not gate]  # discharging: particles cross ranks
     for _ in range(warmup):
@@ -37,21 +42,22 @@ def measure(h: float, warmup: int, steps: int) -> dict:
     solver.timings.clear()
     rebuilds = solver.averaging.rebuilds
     halo_before = getattr(solver.averaging, "halo_seconds", 0.0)  # serial: no halo
-    comm.Barrier()
+    world = MPI.COMM_WORLD
+    world.Barrier()
     start = time.perf_counter()
     for _ in range(steps):
         solver.step()
-    comm.Barrier()
+    world.Barrier()
     total = time.perf_counter() - start
-    halo = comm.allreduce(getattr(solver.averaging, "halo_seconds", 0.0) - halo_before, MPI.MAX)
-    migrate = comm.allreduce(solver.timings.get("migrate", 0.0), MPI.MAX)
+    halo = world.allreduce(getattr(solver.averaging, "halo_seconds", 0.0) - halo_before, MPI.MAX)
+    migrate = world.allreduce(solver.timings.get("migrate", 0.0), MPI.MAX)
     return {
         "particles": solver.num_particles(),
         "ms_per_step": 1e3 * total / steps,
         "migrate_ms_per_step": 1e3 * migrate / steps,
         "halo_ms_per_step": 1e3 * halo / steps,
-        "particles_per_rank_max": comm.allreduce(len(solver.particles), MPI.MAX),
-        "pair_rebuilds": comm.allreduce(solver.averaging.rebuilds - rebuilds, MPI.MAX),
+        "particles_per_rank_max": world.allreduce(len(solver.particles), MPI.MAX),
+        "pair_rebuilds": world.allreduce(solver.averaging.rebuilds - rebuilds, MPI.MAX),
     }
 
 
@@ -61,10 +67,12 @@ def main():
     parser.add_argument("--warmup", type=int, default=400, help="steps before the timing")
     parser.add_argument("--steps", type=int, default=50)
     parser.add_argument("--runs", type=int, default=3)
+    parser.add_argument("--independent", action="store_true", help="one whole silo per rank, side by side")
     parser.add_argument("--json", type=Path, default=Path(__file__).with_name("mpi_scaling.json"))
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
-    runs = [measure(args.h, args.warmup, args.steps) for _ in range(args.runs)]
+    run_comm = MPI.COMM_SELF if args.independent else comm
+    runs = [measure(args.h, args.warmup, args.steps, run_comm) for _ in range(args.runs)]
     result = {key: float(np.median([r[key] for r in runs])) for key in runs[0]}
     result.update(ranks=comm.size, runs=args.runs, warmup=args.warmup, steps_per_run=args.steps, h=args.h,
                   dolfinx=dm.compat.dolfinx.__version__)  # fmt: skip
@@ -72,9 +80,17 @@ def main():
         table = json.loads(args.json.read_text()) if args.json.exists() else {}
         same = lambda v: (v.get("h"), v.get("warmup")) == (args.h, args.warmup)  # noqa: E731
         table = {k: v for k, v in table.items() if same(v)}  # one silo and state per file
-        table[str(comm.size)] = result
+        key = f"{comm.size} independent" if args.independent else str(comm.size)
+        table[key] = result
         args.json.write_text(json.dumps(table, indent=2))
         r = result
+        if args.independent:
+            print(f"{comm.size} one-rank silos side by side, {r['particles']:.0f} particles each: "
+                  f"{r['ms_per_step']:.1f} ms/step (slowest)")  # fmt: skip
+            if "1" in table:
+                ceiling = comm.size * table["1"]["ms_per_step"] / r["ms_per_step"]
+                print(f"  the machine's ceiling for the speed-up on {comm.size} ranks: {ceiling:.2f}")
+            return
         most = r["particles_per_rank_max"]
         print(f"{comm.size} rank(s), {r['particles']:.0f} particles (at most {most:.0f} on one rank), "
               f"median of {args.runs} x {args.steps} steps after {args.warmup}:")  # fmt: skip

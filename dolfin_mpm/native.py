@@ -24,8 +24,6 @@ __all__ = ["array", "cache_dir", "load"]
 
 FLAGS = ("-O3", "-std=c99", "-fPIC", "-shared")
 
-_loaded: dict[str, ctypes.CDLL] = {}
-
 
 def cache_dir() -> Path:
     """The folder of the compiled libraries."""
@@ -44,14 +42,12 @@ def load(source: Path, signatures: dict[str, tuple]) -> ctypes.CDLL:
     text = source.read_bytes()
     key = hashlib.sha256(b"\0".join([text, *map(str.encode, [*compiler, *FLAGS, platform.machine()])]))
     library = cache_dir() / f"{source.stem}-{key.hexdigest()[:16]}.so"
-    if str(library) not in _loaded:
-        if not library.exists():
-            _compile(compiler, source, library)
-        lib = ctypes.CDLL(str(library))
-        for name, argtypes in signatures.items():
-            getattr(lib, name).argtypes, getattr(lib, name).restype = argtypes, None
-        _loaded[str(library)] = lib
-    return _loaded[str(library)]
+    if not library.exists():
+        _compile(compiler, source, library)
+    lib = ctypes.CDLL(str(library))
+    for name, argtypes in signatures.items():
+        getattr(lib, name).argtypes, getattr(lib, name).restype = argtypes, None
+    return lib
 
 
 def _compile(compiler: list[str], source: Path, library: Path) -> None:

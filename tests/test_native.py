@@ -15,8 +15,13 @@ def test_compiled_once_into_the_cache(tmp_path, monkeypatch):
     lib = native.load(source, signature)
     v = np.arange(3.0)
     lib.twice(3, v)
-    assert np.array_equal(v, [0.0, 2.0, 4.0]) and len(list((tmp_path / "cache").glob("twice-*.so"))) == 1
-    assert native.load(source, signature) is lib
+    (library,) = (tmp_path / "cache").glob("twice-*.so")
+    built = library.stat().st_mtime_ns
+    native.load(source, signature).twice(3, v)
+    assert np.array_equal(v, [0.0, 4.0, 8.0]) and library.stat().st_mtime_ns == built  # not rebuilt
+    source.write_text(source.read_text().replace("2.0", "3.0"))  # an edited source is rebuilt
+    native.load(source, signature).twice(3, v)
+    assert np.array_equal(v, [0.0, 12.0, 24.0]) and len(list(library.parent.glob("twice-*.so"))) == 2
     with pytest.raises(ctypes.ArgumentError):  # the argument types are checked
         lib.twice(3, np.arange(3))
 
