@@ -4,9 +4,10 @@ The output gathers every rank's particles to rank 0, which alone writes (`dolfin
 times one `Output.write` of the silo (``--h``, 2 mm: ~1.2e5 particles; particles and grid) on
 as many ranks as the script is started with, beside one explicit step, and reports how many
 steps one output costs. With h5py built for MPI it also times the alternative, each rank
-writing its own slice of the same particle arrays into one file collectively (``driver="mpio"``);
-Debian's `python3-h5py` and PyPI's h5py wheels are serial builds, so that part is skipped there
-(on Debian, `apt-get install python3-h5py-mpi` adds the MPI build, used under `mpirun`).
+writing its own slice of the same particle fields into one file collectively
+(``driver="mpio"``; without the grid and the XDMF file). Debian's `python3-h5py` and PyPI's
+h5py wheels are serial builds, so that part is skipped there (on Debian, `apt-get install
+python3-h5py-mpi` adds the MPI build, which h5py then loads under `mpirun`).
 Writes JSON beside the script (one entry per rank count):
 
     mpirun -n 2 python benchmarks/output_cost.py [--h 0.002] [--writes 5]
@@ -83,7 +84,7 @@ def main():
     }
     if h5py.get_config().mpi:
         P = solver.particles
-        arrays = {"x": P.x, "v": P.v, "sigma": P.sigma, "mass": P.mass, "volume": P.volume, "id": P.id}
+        arrays = {"x": P.x, **dm.io.particle_fields(P)}  # what the gathered output writes
         result["collective_particle_write_s"] = timed(
             comm, lambda: collective_write(comm, folder / "collective.h5", arrays), args.writes
         )

@@ -15,7 +15,7 @@ import numpy as np
 from dolfin_mpm import compat
 from dolfin_mpm.tensor import invariants
 
-__all__ = ["Output", "XDMFSeries"]
+__all__ = ["Output", "XDMFSeries", "particle_fields"]
 
 _TYPES = {1: "Scalar", 3: "Vector", 9: "Tensor"}
 
@@ -95,6 +95,21 @@ class XDMFSeries:
         self.h5.close()
 
 
+def particle_fields(P) -> dict[str, np.ndarray]:
+    """The particle output of this rank's particles ``P``, each ``shape=(n, width)`` or ``(n,)``.
+
+    Velocity (padded to 3), stress (9), p, q, mass, volume, id and every material state array.
+    """
+    p, q = invariants(P.sigma)
+    fields = {
+        "velocity": _pad3(P.v), "stress": P.sigma.reshape(-1, 9), "p": p, "q": q,
+        "mass": P.mass, "volume": P.volume, "id": P.id.astype(np.float64),
+    }  # fmt: skip
+    # Explicit widths: a rank may hold no particles.
+    fields.update({name: a.reshape(len(P), int(np.prod(a.shape[1:]))) for name, a in P.state.items()})
+    return fields
+
+
 def _gather(comm, a: np.ndarray) -> np.ndarray | None:
     parts = comm.gather(a, root=0)
     return np.concatenate(parts) if comm.rank == 0 else None
@@ -124,15 +139,8 @@ class Output:
             return
         self.last_time = solver.time
         P, comm = solver.particles, self.comm
-        p, q = invariants(P.sigma)
-        fields = {
-            "velocity": _pad3(P.v), "stress": P.sigma.reshape(-1, 9), "p": p, "q": q,
-            "mass": P.mass, "volume": P.volume, "id": P.id.astype(np.float64),
-        }  # fmt: skip
-        # Explicit widths: a rank may hold no particles.
-        fields.update({name: a.reshape(len(P), int(np.prod(a.shape[1:]))) for name, a in P.state.items()})
         x = _gather(comm, P.x)
-        fields = {name: _gather(comm, a) for name, a in fields.items()}
+        fields = {name: _gather(comm, a) for name, a in particle_fields(P).items()}
         if comm.rank == 0:
             cells = np.arange(len(x), dtype=np.int32).reshape(-1, 1)
             self.particles.write(solver.time, x, cells, "Polyvertex", fields)
