@@ -1,8 +1,9 @@
-/* Pair kernels of the non-local average (nonlocal_average.py): one pass over the pairs each.
+/* Pair kernels of the non-local average (nonlocal_average.py): the weights and the product,
+ * one pass over the pairs each, and the sort of a rebuild's pairs.
  *
- * A pair list is (i[k], j[k]), k < m, each unordered pair once, in runs of equal i (the rows);
- * the weights are symmetric and the average applies A = I + W + W^T. Positions are (n, gdim)
- * row-major doubles.
+ * A pair list is (i[k], j[k]), k < m, each unordered pair once, best in runs of equal i (the
+ * rows); the weights are symmetric and the average applies A = I + W + W^T. Positions are
+ * (n, gdim) row-major doubles, gdim 2 or 3.
  */
 #include <math.h>
 #include <stdint.h>
