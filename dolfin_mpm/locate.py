@@ -4,10 +4,9 @@ For speed the basis arrays are component-first (particle axis last): each compon
 contiguous array over the particles.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import coo_matrix
 
 from dolfin_mpm import compat
 from dolfin_mpm.grid import Grid
@@ -22,17 +21,13 @@ TOL = 1e-12
 class Basis:
     """P1 basis at the particles, computed once per step and used by every stage.
 
+    C-contiguous arrays, read by the compiled transfers.
+
     Attributes:
         dofs: nodes of each particle's cell, ``shape=(gdim + 1, n)``.
         N: basis values, ``shape=(gdim + 1, n)``.
         dN: basis gradients [1/m], ``shape=(gdim + 1, gdim, n)``.
         num_nodes: nodes of the grid (owned and ghosts).
-        to_particles: the sparse ``(n, num_nodes)`` matrix of ``N_a(x_p)``: values at particles.
-        to_nodes: its transpose: nodal sums of particle values.
-
-    Both sparse matrices hold their entries in the order of ``dofs.ravel()`` (node by node of
-    the cells), so that their products add the same terms in the same order as a sum over the
-    cell's nodes.
 
     """
 
@@ -40,16 +35,6 @@ class Basis:
     N: np.ndarray
     dN: np.ndarray
     num_nodes: int
-    to_particles: coo_matrix = field(init=False)
-    to_nodes: coo_matrix = field(init=False)
-
-    def __post_init__(self):
-        n = self.N.shape[1]
-        particle = np.tile(np.arange(n, dtype=np.int32), self.N.shape[0])
-        node = self.dofs.astype(np.int32).ravel()
-        shape = (n, self.num_nodes)
-        self.to_particles = coo_matrix((self.N.ravel(), (particle, node)), shape)
-        self.to_nodes = coo_matrix((self.N.ravel(), (node, particle)), shape[::-1])
 
 
 def barycentric(grid: Grid, x: np.ndarray, cells: np.ndarray) -> np.ndarray:
@@ -100,4 +85,5 @@ def locate(grid: Grid, x: np.ndarray, cells: np.ndarray) -> tuple[np.ndarray, np
 def basis_at(grid: Grid, cells: np.ndarray, N: np.ndarray) -> Basis:
     """Gather the nodes and the (cell-constant) basis gradients of located particles."""
     dofs = grid.cell_dofs_T.take(cells, axis=1)
-    return Basis(dofs=dofs, N=N, dN=grid.grad_N.take(cells, axis=2), num_nodes=grid.num_nodes)
+    dN = grid.grad_N.take(cells, axis=2)
+    return Basis(dofs=dofs, N=np.ascontiguousarray(N), dN=dN, num_nodes=grid.num_nodes)

@@ -1,92 +1,108 @@
 /* Pair kernels of the non-local average (nonlocal_average.py): the weights and the product,
  * one pass over the pairs each, and the sort of a rebuild's pairs.
  *
- * A pair list is (i[k], j[k]), k < m, each unordered pair once, best in runs of equal i (the
- * rows); the weights are symmetric and the average applies A = I + W + W^T. Positions are
- * (n, gdim) row-major doubles, gdim 2 or 3.
+ * A pair list holds each unordered pair (i, j) once, in runs of equal i: run r holds the pairs
+ * (row[r], j[k]), begin[r] <= k < begin[r + 1]. The weights are symmetric and the average
+ * applies A = I + W + W^T. Positions are (n, gdim) row-major doubles, gdim 2 or 3.
+ *
+ * The loops stream the pairs through memory (~10^7 for 10^5 particles) and are bound by its
+ * bandwidth: a run stores its i once, and the weights pass keeps only the pairs closer than r
+ * for the products.
  */
 #include <math.h>
 #include <stdint.h>
 
 enum { CUBIC = 0, CONSTANT = 1, GAUSSIAN = 2 };
 
-/* w(t) for t = min(s, 1): zero at t = 1, that is at and beyond the radius. */
-static inline double weight(int32_t kind, double t)
+/* w(s) for s < 1. */
+static inline double weight(int32_t kind, double s)
 {
   if (kind == CUBIC)
-    return (1.0 - t) * (1.0 - t) * (1.0 + 2.0 * t); /* = 1 + t^2 (2t - 3), no cancellation */
+    return (1.0 - s) * (1.0 - s) * (1.0 + 2.0 * s); /* = 1 + s^2 (2s - 3), no cancellation */
   if (kind == CONSTANT)
-    return t < 1.0 ? 1.0 : 0.0;
-  return t < 1.0 ? exp(-2.5 * t * t) : 0.0;
+    return 1.0;
+  return exp(-2.5 * s * s);
 }
 
-static inline void weights_of(int32_t kind, int32_t gdim, int64_t m, const double *restrict x,
-                              const int32_t *restrict i, const int32_t *restrict j, double inv_r,
-                              double *restrict w)
+static inline int64_t weights_of(int32_t kind, int32_t gdim, int64_t runs, const int32_t *restrict row,
+                                 const int64_t *restrict begin, const int32_t *restrict j,
+                                 const double *restrict x, double inv_r, int32_t *restrict row_near,
+                                 int64_t *restrict begin_near, int32_t *restrict j_near,
+                                 double *restrict w)
 {
-  for (int64_t k = 0; k < m; ++k)
+  int64_t runs_near = 0, count = 0;
+  for (int64_t r = 0; r < runs; ++r)
   {
-    const double *x_a = x + (int64_t)i[k] * gdim, *x_b = x + (int64_t)j[k] * gdim;
-    double d2 = 0.0;
-    for (int32_t c = 0; c < gdim; ++c)
-      d2 += (x_a[c] - x_b[c]) * (x_a[c] - x_b[c]);
-    const double t = sqrt(d2) * inv_r;
-    w[k] = weight(kind, t < 1.0 ? t : 1.0);
+    const double *x_a = x + (int64_t)row[r] * gdim;
+    const int64_t first = count;
+    for (int64_t k = begin[r]; k < begin[r + 1]; ++k)
+    {
+      const double *x_b = x + (int64_t)j[k] * gdim;
+      double d2 = 0.0;
+      for (int32_t c = 0; c < gdim; ++c)
+        d2 += (x_a[c] - x_b[c]) * (x_a[c] - x_b[c]);
+      const double s = sqrt(d2) * inv_r;
+      /* Written every time, kept (the count advances) only within the radius: no branch. */
+      j_near[count] = j[k];
+      w[count] = weight(kind, s);
+      count += s < 1.0;
+    }
+    if (count > first)
+    {
+      row_near[runs_near] = row[r];
+      begin_near[runs_near++] = first;
+    }
   }
+  begin_near[runs_near] = count;
+  return runs_near;
 }
 
-/* w[k] = w(|x[i[k]] - x[j[k]]| / r). One loop per weight and dimension (2 or 3), each with
- * both inlined. (Accumulating A volume in the same loop made it slower than a second pass.) */
-void pair_weights(int64_t m, int32_t gdim, const double *x, const int32_t *i, const int32_t *j,
-                  double inv_r, int32_t kind, double *w)
+/* The pairs of the list (runs, row, begin, j) closer than r, in their order, to the list
+ * (*runs_near, row_near, begin_near, j_near), with their weights w(|x_i - x_j| / r) in w.
+ * One loop per weight and dimension (2 or 3), each with both inlined. (Accumulating A volume
+ * in the same loop made it slower than a second pass.) */
+void pair_weights(int64_t runs, const int32_t *row, const int64_t *begin, const int32_t *j,
+                  int32_t gdim, const double *x, double inv_r, int32_t kind, int64_t *runs_near,
+                  int32_t *row_near, int64_t *begin_near, int32_t *j_near, double *w)
 {
-#define WEIGHTS_OF(kind, gdim) weights_of(kind, gdim, m, x, i, j, inv_r, w)
+#define WEIGHTS_OF(kind, gdim)                                                                      \
+  weights_of(kind, gdim, runs, row, begin, j, x, inv_r, row_near, begin_near, j_near, w)
   if (gdim == 2)
-  {
-    if (kind == CUBIC)
-      WEIGHTS_OF(CUBIC, 2);
-    else if (kind == CONSTANT)
-      WEIGHTS_OF(CONSTANT, 2);
-    else
-      WEIGHTS_OF(GAUSSIAN, 2);
-  }
+    *runs_near = kind == CUBIC      ? WEIGHTS_OF(CUBIC, 2)
+                 : kind == CONSTANT ? WEIGHTS_OF(CONSTANT, 2)
+                                    : WEIGHTS_OF(GAUSSIAN, 2);
   else
-  {
-    if (kind == CUBIC)
-      WEIGHTS_OF(CUBIC, 3);
-    else if (kind == CONSTANT)
-      WEIGHTS_OF(CONSTANT, 3);
-    else
-      WEIGHTS_OF(GAUSSIAN, 3);
-  }
+    *runs_near = kind == CUBIC      ? WEIGHTS_OF(CUBIC, 3)
+                 : kind == CONSTANT ? WEIGHTS_OF(CONSTANT, 3)
+                                    : WEIGHTS_OF(GAUSSIAN, 3);
 #undef WEIGHTS_OF
 }
 
 /* out = A v = v + (W + W^T) v; v and out of length n. A row's own sum stays in two registers
  * (no chain of additions through memory); the other ends are scattered. */
-void pair_apply(int64_t n, int64_t m, const int32_t *restrict i, const int32_t *restrict j,
-                const double *restrict w, const double *restrict v, double *restrict out)
+void pair_apply(int64_t n, int64_t runs, const int32_t *restrict row, const int64_t *restrict begin,
+                const int32_t *restrict j, const double *restrict w, const double *restrict v,
+                double *restrict out)
 {
   for (int64_t a = 0; a < n; ++a)
     out[a] = v[a];
-  int64_t k = 0;
-  while (k < m)
+  for (int64_t r = 0; r < runs; ++r)
   {
-    const int32_t a = i[k];
+    const int32_t a = row[r];
     const double v_a = v[a];
     double sum0 = 0.0, sum1 = 0.0;
-    for (; k + 1 < m && i[k + 1] == a; k += 2)
+    int64_t k = begin[r];
+    for (; k + 1 < begin[r + 1]; k += 2)
     {
       sum0 += w[k] * v[j[k]];
       sum1 += w[k + 1] * v[j[k + 1]];
       out[j[k]] += w[k] * v_a;
       out[j[k + 1]] += w[k + 1] * v_a;
     }
-    if (k < m && i[k] == a)
+    if (k < begin[r + 1])
     {
       sum0 += w[k] * v[j[k]];
       out[j[k]] += w[k] * v_a;
-      ++k;
     }
     out[a] += sum0 + sum1;
   }

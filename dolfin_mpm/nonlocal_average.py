@@ -20,6 +20,7 @@ numpy would stream every intermediate through memory, and the sort of a rebuild'
 
 import ctypes
 import functools
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -34,19 +35,54 @@ __all__ = ["WEIGHTS", "NonlocalAverage"]
 #: ``exp(-2.5 s^2)``; the value is the kernel's code for each.
 WEIGHTS = {"cubic": 0, "constant": 1, "gaussian": 2}
 
-_INDEX, _REAL = native.array(np.int32), native.array(np.float64)
+_INDEX, _OFFSET, _REAL = native.array(np.int32), native.array(np.int64), native.array(np.float64)
 _SIGNATURES = {
     "pair_weights": (
-        ctypes.c_int64, ctypes.c_int32, _REAL, _INDEX, _INDEX, ctypes.c_double, ctypes.c_int32, _REAL,
+        ctypes.c_int64, _INDEX, _OFFSET, _INDEX, ctypes.c_int32, _REAL, ctypes.c_double, ctypes.c_int32,
+        _OFFSET, _INDEX, _OFFSET, _INDEX, _REAL,
     ),
-    "pair_apply": (ctypes.c_int64, ctypes.c_int64, _INDEX, _INDEX, _REAL, _REAL, _REAL),
-    "pair_sort": (ctypes.c_int64, ctypes.c_int64, _INDEX, _INDEX, _INDEX, _INDEX, native.array(np.int64)),
+    "pair_apply": (ctypes.c_int64, ctypes.c_int64, _INDEX, _OFFSET, _INDEX, _REAL, _REAL, _REAL),
+    "pair_sort": (ctypes.c_int64, ctypes.c_int64, _INDEX, _INDEX, _INDEX, _INDEX, _OFFSET),
 }  # fmt: skip
 
 
 @functools.cache
 def _kernels() -> ctypes.CDLL:
     return native.load(Path(__file__).with_suffix(".c"), _SIGNATURES)
+
+
+@dataclass
+class _Pairs:
+    """Pairs ``(i, j)`` in runs of equal ``i``.
+
+    Run ``r`` holds the pairs ``(row[r], j[k])``, ``begin[r] <= k < begin[r + 1]``; particles
+    are int32, offsets int64.
+    """
+
+    row: np.ndarray
+    begin: np.ndarray
+    j: np.ndarray
+
+    @classmethod
+    def of(cls, i: np.ndarray, j: np.ndarray) -> "_Pairs":
+        """The pairs ``(i[k], j[k])``; equal ``i`` next to each other share a run."""
+        first = np.flatnonzero(np.r_[True, i[1:] != i[:-1]]) if len(i) else np.zeros(0, dtype=np.int64)
+        return cls(i[first].astype(np.int32), np.r_[first, len(i)].astype(np.int64), j.astype(np.int32))
+
+    @classmethod
+    def empty(cls, runs: int, m: int) -> "_Pairs":
+        """Room for ``runs`` runs of ``m`` pairs in all."""
+        row, begin = np.empty(runs, dtype=np.int32), np.zeros(runs + 1, dtype=np.int64)
+        return cls(row, begin, np.empty(m, dtype=np.int32))
+
+    def __add__(self, other: "_Pairs") -> "_Pairs":
+        begin = np.r_[self.begin[:-1], other.begin + len(self.j)]
+        return _Pairs(np.r_[self.row, other.row], begin, np.r_[self.j, other.j])
+
+    def expand(self, first_run: int = 0) -> np.ndarray:
+        """The pairs of the runs from ``first_run`` on, ``shape=(m, 2)``."""
+        begin = self.begin[first_run:]
+        return np.c_[np.repeat(self.row[first_run:], np.diff(begin)), self.j[begin[0] :]]
 
 
 class NonlocalAverage:
@@ -66,7 +102,8 @@ class NonlocalAverage:
         skin = 0.25 * radius if skin is None else skin
         check_range("skin", skin, 0.0, np.inf, closed=(True, False))
         self.radius, self.weight, self.skin = float(radius), weight, float(skin)
-        self._slot_ids, self._w = None, np.zeros(0)
+        self._slot_ids = None
+        self._within, self._w = _Pairs.empty(0, 0), np.zeros(0)  # the pairs closer than r, weights
         self.rebuilds = 0
         if not self.is_local:
             _kernels()  # compiled now, before any long work
@@ -88,10 +125,12 @@ class NonlocalAverage:
         # Rows in order, columns sorted within a row: the weights' gathers then walk through
         # memory (2-3x faster than in the KD-tree's order).
         m = len(pairs)
-        self._i, self._j = np.ascontiguousarray(pairs.T, dtype=np.int32)
+        i, j = np.ascontiguousarray(pairs.T, dtype=np.int32)
         scratch = np.empty((2, m), dtype=np.int32)
-        _kernels().pair_sort(n, m, self._i, self._j, scratch[0], scratch[1], np.empty(n + 1, dtype=np.int64))
-        self._slot_ids, self._x_ref, self._base, self._base_pairs = ids.copy(), x.copy(), n, m
+        _kernels().pair_sort(n, m, i, j, scratch[0], scratch[1], np.empty(n + 1, dtype=np.int64))
+        self._pairs = _Pairs.of(i, j)
+        self._slot_ids, self._x_ref, self._base = ids.copy(), x.copy(), n
+        self._base_runs = len(self._pairs.row)
         self._x_slot = x.copy()
         self._set_live(np.arange(len(ids)), ids)
         self.rebuilds += 1
@@ -119,10 +158,6 @@ class NonlocalAverage:
         self._x_ref = np.r_[self._x_ref, x]
         self._x_slot = np.r_[self._x_slot, x]
 
-    def _add_pairs(self, i: np.ndarray, j: np.ndarray) -> None:
-        self._i = np.r_[self._i, i.astype(np.int32)]
-        self._j = np.r_[self._j, j.astype(np.int32)]
-
     def _add(self, x: np.ndarray, slot: np.ndarray, ids: np.ndarray) -> np.ndarray:
         """Slots and pairs for the particles with ``slot == -1``; returns the completed ``slot``."""
         new = slot < 0
@@ -138,7 +173,7 @@ class NonlocalAverage:
         rows = np.r_[first + among[:, 1], first + found["i"]]
         cols = np.r_[first + among[:, 0], slot[old][found["j"]]]
         order = np.argsort(rows, kind="stable")
-        self._add_pairs(rows[order], cols[order])
+        self._pairs += _Pairs.of(rows[order], cols[order])
         return slot
 
     # -- the average ------------------------------------------------------------------------------
@@ -159,7 +194,7 @@ class NonlocalAverage:
             "rebuilds": np.array(self.rebuilds),
         }
         if len(self._slot_ids) > b:
-            added = np.c_[self._i[self._base_pairs :], self._j[self._base_pairs :]]
+            added = self._pairs.expand(self._base_runs)
             state.update(ids_added=self._slot_ids[b:], x_added=self._x_ref[b:], pairs_added=added)
         return state
 
@@ -171,7 +206,7 @@ class NonlocalAverage:
         self._rebuild(np.ascontiguousarray(state["x_built"]), np.asarray(state["ids_built"]))
         if "ids_added" in state:
             self._add_slots(np.asarray(state["ids_added"]), np.asarray(state["x_added"]))
-            self._add_pairs(*np.asarray(state["pairs_added"]).T)
+            self._pairs += _Pairs.of(*np.asarray(state["pairs_added"]).T)
         ids = np.asarray(state["ids"])
         self._set_live(np.arange(len(self._slot_ids)), self._slot_ids)
         slot = self._slots_of(ids)
@@ -195,24 +230,34 @@ class NonlocalAverage:
             self._rebuild(x, ids)
         else:
             slot = self._slot if np.array_equal(ids, self._ids) else self._slots_of(ids)
-            known = slot >= 0
-            u = x[known] - self._x_ref[slot[known]]
-            arrived = len(self._slot_ids) > self._base or not known.all()
+            if slot is self._slot and self._identity:  # the common case: no gathers
+                u, num_known = x - self._x_ref, len(ids)
+            else:
+                known = slot >= 0
+                u, num_known = x[known] - self._x_ref[slot[known]], int(known.sum())
+            arrived = len(self._slot_ids) > self._base or num_known < len(ids)
             limit = self.skin / 3.0 if arrived else 0.5 * self.skin
-            dead = len(self._slot_ids) - known.sum()
-            if np.max(np.sum(u * u, axis=1), initial=0.0) > limit**2 or dead > 0.25 * len(ids):
+            dead = len(self._slot_ids) - num_known
+            if np.max(np.einsum("ij,ij->i", u, u), initial=0.0) > limit**2 or dead > 0.25 * len(ids):
                 self._rebuild(x, ids)
             elif slot is not self._slot:
-                if not known.all():
+                if num_known < len(ids):
                     slot = self._add(x, slot, ids)
                 self._set_live(slot, ids)
-        self._x_slot[self._slot] = x
-        if len(self._w) != len(self._i):
-            self._w = np.empty(len(self._i))
+        if self._identity:
+            np.copyto(self._x_slot, x)
+        else:
+            self._x_slot[self._slot] = x
+        pairs, within = self._pairs, self._within
+        if len(within.row) != len(pairs.row) or len(within.j) != len(pairs.j):
+            self._within = within = _Pairs.empty(len(pairs.row), len(pairs.j))
+            self._w = np.empty(len(pairs.j))
+        runs = np.zeros(1, dtype=np.int64)
         _kernels().pair_weights(
-            len(self._i), x.shape[1], self._x_slot, self._i, self._j, 1.0 / self.radius,
-            WEIGHTS[self.weight], self._w,
+            len(pairs.row), pairs.row, pairs.begin, pairs.j, x.shape[1], self._x_slot, 1.0 / self.radius,
+            WEIGHTS[self.weight], runs, within.row, within.begin, within.j, self._w,
         )  # fmt: skip
+        self._runs_within = int(runs[0])
         self._volume = volume
         self._denominator = self._apply(volume)
 
@@ -228,7 +273,8 @@ class NonlocalAverage:
         """``A v`` for a field ``v`` of the caller's particles (dead slots hold zero)."""
         y = self._slot_field(v)
         z = np.empty_like(y)
-        _kernels().pair_apply(len(y), len(self._i), self._i, self._j, self._w, y, z)
+        within = self._within
+        _kernels().pair_apply(len(y), self._runs_within, within.row, within.begin, within.j, self._w, y, z)
         return z if self._identity else z[self._slot]
 
     def __call__(self, e: np.ndarray) -> np.ndarray:

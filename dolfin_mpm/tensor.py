@@ -15,10 +15,7 @@ __all__ = [
     "equivalent_stress",
     "from_mandel",
     "invariants",
-    "jaumann_rotate",
-    "jaumann_rotation",
     "particle_first",
-    "rotate",
     "split_velocity_gradient",
     "to_mandel",
 ]
@@ -36,21 +33,6 @@ def component_first(a: np.ndarray) -> np.ndarray:
 def particle_first(c: np.ndarray) -> np.ndarray:
     """The ``shape=(n, ...)`` view of a component-first array."""
     return np.moveaxis(c, -1, 0)
-
-
-def _mm(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """Component-first product of ``(k, m, n)`` and ``(m, l, n)`` stacks."""
-    C = np.empty((A.shape[0], B.shape[1], A.shape[2]))
-    for i in range(A.shape[0]):
-        for j in range(B.shape[1]):
-            C[i, j] = sum(A[i, k] * B[k, j] for k in range(A.shape[1]))
-    return C
-
-
-def rotate(sigma: np.ndarray, Q: np.ndarray) -> np.ndarray:
-    """``Q sigma Q^T`` for stacks of 3x3 tensors."""
-    Qc = component_first(Q)
-    return particle_first(_mm(_mm(Qc, component_first(sigma)), Qc.transpose(1, 0, 2)))
 
 
 def det(A: np.ndarray) -> np.ndarray:
@@ -86,62 +68,6 @@ def split_velocity_gradient(L: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             W[i, j] = 0.5 * (Lc[i, j] - Lc[j, i])
             W[j, i] = -W[i, j]
     return particle_first(d), particle_first(W)
-
-
-def jaumann_rotation(W: np.ndarray, dt: float) -> np.ndarray:
-    """Incremental rotation of the Hughes–Winget update, ``(I - dt W/2)^-1 (I + dt W/2)``.
-
-    Rotating ``sigma`` by it (``Q sigma Q^T``) integrates the spin terms of the
-    Zaremba–Jaumann rate incrementally objectively, for any size of ``dt W``.
-
-    Args:
-        W: spin [1/s], skew, ``shape=(n, 3, 3)``.
-        dt: time step [s].
-
-    Returns:
-        Proper orthogonal ``Q``, ``shape=(n, 3, 3)``.
-
-    """
-    A = (0.5 * dt) * component_first(W)
-    # Cayley transform in closed form: Q = I + 2 (A + A^2) / (1 + |a|^2), a = axial(A).
-    a2 = A[0, 1] ** 2 + A[0, 2] ** 2 + A[1, 2] ** 2
-    Q = A + _mm(A, A)
-    Q *= 2.0 / (1.0 + a2)
-    for i in range(3):
-        Q[i, i] += 1.0
-    return particle_first(Q)
-
-
-def jaumann_rotate(sigma: np.ndarray, W: np.ndarray, dt: float) -> np.ndarray:
-    """``Q sigma Q^T`` with ``Q = jaumann_rotation(W, dt)``, ``shape=(n, 3, 3)``.
-
-    A spin in the xy-plane (``W_xz = W_yz = 0`` for all particles, as in plane strain) makes
-    ``Q`` a rotation about z; the product then skips the terms with the zero entries of ``Q``,
-    which changes nothing in the result but saves most of the work.
-    """
-    Wc = component_first(W)
-    if np.any(Wc[0, 2]) or np.any(Wc[1, 2]):
-        return rotate(sigma, jaumann_rotation(W, dt))
-    S = component_first(sigma)
-    # jaumann_rotation with A_xz = A_yz = 0: Q = I + 2 (A + A^2) / (1 + A_xy^2).
-    a01, a10 = (0.5 * dt) * Wc[0, 1], (0.5 * dt) * Wc[1, 0]
-    scale = 2.0 / (1.0 + a01**2)
-    q00 = a01 * a10
-    q00 *= scale
-    q00 += 1.0  # = q11
-    q01, q10 = a01 * scale, a10 * scale
-    # T = Q S: its third row is S's.
-    T = np.empty((2, 3, S.shape[2]))
-    for j in range(3):
-        T[0, j] = q00 * S[0, j] + q01 * S[1, j]
-        T[1, j] = q10 * S[0, j] + q00 * S[1, j]
-    # R = T Q^T
-    R = np.empty_like(S)
-    for i, t in enumerate((T[0], T[1], S[2])):
-        R[i, 0] = t[0] * q00 + t[1] * q01
-        R[i, 1] = t[0] * q10 + t[1] * q00
-        R[i, 2] = t[2]
-    return particle_first(R)
 
 
 def deviator(sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

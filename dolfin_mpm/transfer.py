@@ -1,17 +1,43 @@
-"""Particle-to-grid and grid-to-particle transfers through the P1 basis (vectorised).
+"""Particle-to-grid and grid-to-particle transfers through the P1 basis.
 
 Nodal arrays are ``shape=(num_nodes, k)``; per-particle arrays have the particle axis first;
-the basis is component-first (:class:`dolfin_mpm.locate.Basis`), with the sparse matrices of
-its values built once per step. Loops run over the few nodes of a cell and the
-vector components, never over particles.
+the basis is component-first (:class:`dolfin_mpm.locate.Basis`). The loops over the particles
+are compiled C (``transfer.c``), one pass per call: a particle's few nodes and components are
+gathered or scattered where numpy built a sparse matrix per step and streamed each component
+through it separately.
 """
+
+import ctypes
+import functools
+from pathlib import Path
 
 import numpy as np
 
+from dolfin_mpm import native
 from dolfin_mpm.locate import Basis
-from dolfin_mpm.tensor import particle_first
+from dolfin_mpm.tensor import component_first, particle_first
 
 __all__ = ["gradient", "internal_force", "interpolate", "scatter"]
+
+_INT, _NODES, _REAL = ctypes.c_int32, native.array(np.int64), native.array(np.float64)
+_SIGNATURES = {
+    name: (ctypes.c_int64, _INT, _NODES, _REAL, *extra, _REAL, _REAL)
+    for name, extra in (
+        ("scatter", (_INT,)),
+        ("internal_force", (_REAL,)),
+        ("interpolate", (_INT,)),
+        ("gradient", (_INT,)),
+    )
+}
+
+
+@functools.cache
+def _kernels() -> ctypes.CDLL:
+    return native.load(Path(__file__).with_suffix(".c"), _SIGNATURES)
+
+
+def _as_real(a: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=np.float64)
 
 
 def scatter(basis: Basis, values: np.ndarray) -> np.ndarray:
@@ -24,9 +50,11 @@ def scatter(basis: Basis, values: np.ndarray) -> np.ndarray:
         ``shape=(num_nodes,)`` or ``(num_nodes, k)``.
 
     """
-    if values.ndim == 1:
-        return basis.to_nodes @ values
-    return np.stack([basis.to_nodes @ values[:, c] for c in range(values.shape[1])], axis=1)
+    values = _as_real(values)
+    k = 1 if values.ndim == 1 else values.shape[1]
+    out = np.zeros((basis.num_nodes, *values.shape[1:]))
+    _kernels().scatter(basis.N.shape[1], basis.N.shape[0], basis.dofs, basis.N, k, values, out)
+    return out
 
 
 def internal_force(basis: Basis, sigma: np.ndarray, volume: np.ndarray) -> np.ndarray:
@@ -37,21 +65,18 @@ def internal_force(basis: Basis, sigma: np.ndarray, volume: np.ndarray) -> np.nd
         volume: particle volumes, ``shape=(n,)``.
 
     """
-    idx = basis.dofs.ravel()
-    g = basis.dN.shape[1]
-    cols = []
-    for i in range(g):
-        s = [sigma[:, i, j] * volume for j in range(g)]
-        w = sum(s[j] * basis.dN[:, j, :] for j in range(g))  # (gdim+1, n)
-        cols.append(np.bincount(idx, w.ravel(), minlength=basis.num_nodes))
-    return np.stack(cols, axis=1)
+    gdim = basis.dN.shape[1]
+    out = np.zeros((basis.num_nodes, gdim))
+    sigma = component_first(np.asarray(sigma, dtype=np.float64))  # no copy of component-first memory
+    _kernels().internal_force(len(volume), gdim, basis.dofs, basis.dN, sigma, _as_real(volume), out)
+    return out
 
 
 def interpolate(basis: Basis, nodal: np.ndarray) -> np.ndarray:
     """Values ``sum_a N_a(x_p) nodal_a`` at the particles, ``nodal.shape=(num_nodes, k)`` -> ``(n, k)``."""
-    out = np.empty((basis.N.shape[1], nodal.shape[1]))
-    for c in range(nodal.shape[1]):
-        out[:, c] = basis.to_particles @ np.ascontiguousarray(nodal[:, c])
+    (nn, n), k = basis.N.shape, nodal.shape[1]
+    out = np.empty((n, k))
+    _kernels().interpolate(n, nn, basis.dofs, basis.N, k, _as_real(nodal), out)
     return out
 
 
@@ -60,10 +85,7 @@ def gradient(basis: Basis, nodal: np.ndarray) -> np.ndarray:
 
     The result is a particle-first view of component-first memory.
     """
-    g = basis.dN.shape[1]
-    L = np.empty((nodal.shape[1], g, basis.N.shape[1]))
-    for i in range(nodal.shape[1]):
-        vi = np.ascontiguousarray(nodal[:, i]).take(basis.dofs)  # (gdim+1, n)
-        for j in range(g):
-            L[i, j] = (vi * basis.dN[:, j, :]).sum(axis=0)
-    return particle_first(L)
+    gdim, n = basis.dN.shape[1:]
+    out = np.empty((nodal.shape[1], gdim, n))
+    _kernels().gradient(n, gdim, basis.dofs, basis.dN, nodal.shape[1], _as_real(nodal), out)
+    return particle_first(out)

@@ -10,7 +10,7 @@ from mpi4py import MPI
 
 import dolfin_mpm as dm
 from dolfin_mpm.locate import basis_at, locate
-from dolfin_mpm.transfer import gradient, interpolate
+from dolfin_mpm.transfer import gradient, internal_force, interpolate, scatter
 
 EPS = np.finfo(np.float64).eps
 
@@ -36,6 +36,32 @@ def test_partition_of_unity_and_gradients(unit_grid):
     nodal = f(unit_grid.node_x)
     assert np.allclose(interpolate(basis, nodal), f(x), atol=1e-13)
     assert np.allclose(gradient(basis, nodal)[:, 0, :], [2.0, -3.0], atol=1e-12)
+
+
+@pytest.mark.parametrize("gdim", [2, 3])
+def test_transfers_equal_their_dense_sums(gdim):
+    # Each transfer against the dense matrices of the basis: values N[p, a], gradients dN[j][p, a].
+    msh = rectangle((0, 0), (1, 1), (6, 5)) if gdim == 2 else mesh.create_unit_cube(MPI.COMM_WORLD, 3, 4, 2)
+    grid = dm.Grid(msh)
+    x = random_points(grid, 400, seed=3)
+    basis = basis_at(grid, *locate(grid, x, np.full(len(x), -1, np.int32)))
+    n, rows = len(x), np.arange(len(x))
+    N, dN = np.zeros((n, grid.num_nodes)), np.zeros((gdim, n, grid.num_nodes))
+    for a in range(gdim + 1):
+        N[rows, basis.dofs[a]] += basis.N[a]
+        for j in range(gdim):
+            dN[j][rows, basis.dofs[a]] += basis.dN[a, j]
+    rng = np.random.default_rng(4)
+    v, nodal, volume = rng.normal(size=(n, 2)), rng.normal(size=(grid.num_nodes, gdim)), rng.random(n)
+    sigma = rng.normal(size=(n, 3, 3))
+    sigma = sigma + np.swapaxes(sigma, 1, 2)
+    assert np.allclose(scatter(basis, v[:, 0]), N.T @ v[:, 0], rtol=0, atol=1e-13)
+    assert np.allclose(scatter(basis, v), N.T @ v, rtol=0, atol=1e-13)
+    assert np.allclose(interpolate(basis, nodal), N @ nodal, rtol=0, atol=1e-13)
+    L = np.stack([dN[j] @ nodal for j in range(gdim)], axis=2)  # (n, k, gdim)
+    assert np.allclose(gradient(basis, nodal), L, rtol=0, atol=1e-12)
+    R = sum(dN[j].T @ (volume[:, None] * sigma[:, :gdim, j]) for j in range(gdim))
+    assert np.allclose(internal_force(basis, sigma, volume), R, rtol=0, atol=1e-12)
 
 
 def test_locate_cheap_path_and_search(unit_grid):

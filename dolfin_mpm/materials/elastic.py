@@ -1,13 +1,37 @@
-"""Linear hypo-elasticity with the Zaremba–Jaumann stress rate."""
+"""Linear hypo-elasticity with the Zaremba–Jaumann stress rate.
 
+The rate is integrated incrementally objectively (Hughes–Winget): the stress is rotated by
+``Q = (I - dt W/2)^-1 (I + dt W/2)``, exactly orthogonal for any ``dt W``, then the elastic
+increment is added. The predictor is one compiled pass over the particles
+(``hypoelastic.c``): in numpy its ~100 flops per particle streamed a dozen temporary
+arrays through memory, a quarter of the paper's step.
+"""
+
+import ctypes
+import functools
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
+from dolfin_mpm import native
 from dolfin_mpm.materials.base import Material, check_range
-from dolfin_mpm.tensor import component_first, deviator, jaumann_rotate, particle_first
+from dolfin_mpm.tensor import component_first, deviator, particle_first
 
 __all__ = ["LinearElastic"]
+
+_REAL = native.array(np.float64)
+_SIGNATURES = {
+    "hypoelastic_trial": (
+        ctypes.c_int64, _REAL, _REAL, _REAL, ctypes.c_double, ctypes.c_double, ctypes.c_double,
+        _REAL, _REAL, _REAL,
+    ),
+}  # fmt: skip
+
+
+@functools.cache
+def _kernels() -> ctypes.CDLL:
+    return native.load(Path(__file__).with_name("hypoelastic.c"), _SIGNATURES)
 
 
 @dataclass(frozen=True)
@@ -29,6 +53,7 @@ class LinearElastic(Material):
         check_range("E", self.E, 0.0, np.inf)
         check_range("nu", self.nu, -1.0, 0.5)
         check_range("rho", self.rho, 0.0, np.inf)
+        _kernels()  # compiled now, before any long work
 
     @property
     def K(self) -> float:
@@ -43,14 +68,31 @@ class LinearElastic(Material):
     def p_wave_speed(self) -> float:
         return float(np.sqrt((self.K + 4.0 * self.G / 3.0) / self.rho))
 
+    def predictor(self, sigma, d, W, dt) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The elastic update of ``sigma`` split into pressure, deviator and equivalent stress.
+
+        Args:
+            sigma, d, W: stress [Pa], rate of deformation and spin [1/s], each
+                ``shape=(n, 3, 3)``; ``sigma`` and ``d`` symmetric, ``W`` skew (their upper
+                triangles are read).
+            dt: time step [s].
+
+        Returns:
+            ``p`` [Pa] ``shape=(n,)``, the deviator ``s`` [Pa] ``shape=(3, 3, n)``
+            (component-first) and ``q = sqrt(3/2 s:s)`` [Pa] ``shape=(n,)``.
+
+        """
+        sigma, d, W = (component_first(np.asarray(a, dtype=np.float64)) for a in (sigma, d, W))
+        n = sigma.shape[-1]
+        p, s, q = np.empty(n), np.empty((3, 3, n)), np.empty(n)
+        _kernels().hypoelastic_trial(n, sigma, d, W, dt, self.K, self.G, p, s, q)
+        return p, s, q
+
     def update(self, sigma, d, W, dt, state):
-        sigma = component_first(jaumann_rotate(sigma, W, dt))
-        d = component_first(d)
-        sigma += (2.0 * self.G * dt) * d
-        lam_dt = (self.K - 2.0 * self.G / 3.0) * dt * (d[0, 0] + d[1, 1] + d[2, 2])
+        p, s, _ = self.predictor(sigma, d, W, dt)
         for i in range(3):
-            sigma[i, i] += lam_dt
-        return particle_first(sigma)
+            s[i, i] -= p
+        return particle_first(s)
 
     def strain_energy_density(self, sigma):
         p, s = deviator(sigma)

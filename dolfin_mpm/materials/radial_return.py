@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dolfin_mpm.materials.elastic import LinearElastic
-from dolfin_mpm.tensor import component_first, deviator, equivalent_stress, particle_first, to_mandel
+from dolfin_mpm.tensor import particle_first, to_mandel
 
 __all__ = ["IsochoricPlastic", "Trial"]
 
@@ -53,8 +53,8 @@ class IsochoricPlastic(LinearElastic):
         An implicit small-strain caller passes the strain increment as ``d`` with ``dt = 1``
         and ``W = 0``.
         """
-        p, s = deviator(LinearElastic.update(self, sigma, d, W, dt, {}))
-        return Trial(p=p, s=component_first(s), q=equivalent_stress(s))  # component_first: a view
+        p, s, q = self.predictor(sigma, d, W, dt)
+        return Trial(p=p, s=s, q=q)
 
     @staticmethod
     def radial_stress(trial: Trial, q: np.ndarray, p: np.ndarray) -> np.ndarray:

@@ -1,0 +1,74 @@
+/* Particle-to-grid and grid-to-particle loops of transfer.py, one pass over the particles each.
+ *
+ * Particle p lies in a cell with the nn = gdim + 1 nodes dofs[a n + p], basis values
+ * N[a n + p] and gradients dN[(a gdim + j) n + p] (component-first, as locate.Basis). Nodal
+ * arrays are (num_nodes, k) and particle arrays (n, k), row-major. Sums run over the cell's
+ * nodes in order, node by node of the cells for the nodal sums: the terms and their order are
+ * those of the sparse products they replace.
+ */
+#include <stdint.h>
+
+/* out[dofs[a, p], c] += N[a, p] values[p, c]; out (num_nodes, k) holds the sums on entry. */
+void scatter(int64_t n, int32_t nn, const int64_t *restrict dofs, const double *restrict N, int32_t k,
+             const double *restrict values, double *restrict out)
+{
+  for (int32_t a = 0; a < nn; ++a)
+    for (int64_t p = 0; p < n; ++p)
+    {
+      const double N_ap = N[a * n + p];
+      double *o = out + dofs[a * n + p] * k;
+      for (int32_t c = 0; c < k; ++c)
+        o[c] += N_ap * values[p * k + c];
+    }
+}
+
+/* out[dofs[a, p], i] += sum_j (sigma_ij[p] volume[p]) dN_aj[p]: the internal forces R of the
+ * stresses sigma, component-first (3, 3, n); out (num_nodes, gdim) holds the sums on entry. */
+void internal_force(int64_t n, int32_t gdim, const int64_t *restrict dofs, const double *restrict dN,
+                    const double *restrict sigma, const double *restrict volume, double *restrict out)
+{
+  const int32_t nn = gdim + 1;
+  for (int32_t a = 0; a < nn; ++a)
+    for (int64_t p = 0; p < n; ++p)
+    {
+      double *o = out + dofs[a * n + p] * gdim;
+      for (int32_t i = 0; i < gdim; ++i)
+      {
+        double f = 0.0;
+        for (int32_t j = 0; j < gdim; ++j)
+          f += sigma[(3 * i + j) * n + p] * volume[p] * dN[(a * gdim + j) * n + p];
+        o[i] += f;
+      }
+    }
+}
+
+/* out[p, c] = sum_a N[a, p] nodal[dofs[a, p], c], out (n, k). */
+void interpolate(int64_t n, int32_t nn, const int64_t *restrict dofs, const double *restrict N, int32_t k,
+                 const double *restrict nodal, double *restrict out)
+{
+  for (int64_t p = 0; p < n; ++p)
+    for (int32_t c = 0; c < k; ++c)
+    {
+      double sum = 0.0;
+      for (int32_t a = 0; a < nn; ++a)
+        sum += N[a * n + p] * nodal[dofs[a * n + p] * k + c];
+      out[p * k + c] = sum;
+    }
+}
+
+/* out[i, j, p] = sum_a nodal[dofs[a, p], i] dN[a, j, p]: the gradient of a nodal field with k
+ * components, component-first (k, gdim, n). */
+void gradient(int64_t n, int32_t gdim, const int64_t *restrict dofs, const double *restrict dN, int32_t k,
+              const double *restrict nodal, double *restrict out)
+{
+  const int32_t nn = gdim + 1;
+  for (int64_t p = 0; p < n; ++p)
+    for (int32_t i = 0; i < k; ++i)
+      for (int32_t j = 0; j < gdim; ++j)
+      {
+        double sum = 0.0;
+        for (int32_t a = 0; a < nn; ++a)
+          sum += nodal[dofs[a * n + p] * k + i] * dN[(a * gdim + j) * n + p];
+        out[(i * gdim + j) * n + p] = sum;
+      }
+}
