@@ -15,7 +15,10 @@ complete for that long.
 
 The loops over the pairs (~10^7 for 10^5 particles at r = 2h) are compiled C
 (``nonlocal_average.c``): the weights and the symmetric product, each one pass a step where
-numpy would stream every intermediate through memory, and the sort of a rebuild's pairs.
+numpy would stream every intermediate through memory, and the sort of a rebuild's pairs. They
+are bound by memory bandwidth, so the pairs are stored in runs of equal first index (its
+value once per run) and the weight pass hands the products only the pairs closer than r
+(about two thirds of those within r + skin).
 """
 
 import ctypes
