@@ -14,22 +14,28 @@
 
 enum { CUBIC = 0, CONSTANT = 1, GAUSSIAN = 2 };
 
-/* w(s) for s < 1. */
-static inline double weight(int32_t kind, double s)
+/* w(s) for s^2 = s2 < 1. */
+static inline double weight(int32_t kind, double s2)
 {
   if (kind == CUBIC)
+  {
+    const double s = sqrt(s2);
     return (1.0 - s) * (1.0 - s) * (1.0 + 2.0 * s); /* = 1 + s^2 (2s - 3), no cancellation */
+  }
   if (kind == CONSTANT)
     return 1.0;
-  return exp(-2.5 * s * s);
+  return exp(-2.5 * s2);
 }
 
+/* Two passes: the pairs closer than r from their squared distances, then the weights of the
+ * kept ones (contiguous: no gathers, and no root for the pairs dropped). */
 static inline int64_t weights_of(int32_t kind, int32_t gdim, int64_t runs, const int32_t *restrict row,
                                  const int64_t *restrict begin, const int32_t *restrict j,
                                  const double *restrict x, double inv_r, int32_t *restrict row_near,
                                  int64_t *restrict begin_near, int32_t *restrict j_near,
                                  double *restrict w)
 {
+  const double inv_r2 = inv_r * inv_r;
   int64_t runs_near = 0, count = 0;
   for (int64_t r = 0; r < runs; ++r)
   {
@@ -41,11 +47,11 @@ static inline int64_t weights_of(int32_t kind, int32_t gdim, int64_t runs, const
       double d2 = 0.0;
       for (int32_t c = 0; c < gdim; ++c)
         d2 += (x_a[c] - x_b[c]) * (x_a[c] - x_b[c]);
-      const double s = sqrt(d2) * inv_r;
+      const double s2 = d2 * inv_r2;
       /* Written every time, kept (the count advances) only within the radius: no branch. */
       j_near[count] = j[k];
-      w[count] = weight(kind, s);
-      count += s < 1.0;
+      w[count] = s2;
+      count += s2 < 1.0;
     }
     if (count > first)
     {
@@ -54,6 +60,8 @@ static inline int64_t weights_of(int32_t kind, int32_t gdim, int64_t runs, const
     }
   }
   begin_near[runs_near] = count;
+  for (int64_t k = 0; k < count; ++k)
+    w[k] = weight(kind, w[k]);
   return runs_near;
 }
 

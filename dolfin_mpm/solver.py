@@ -22,7 +22,7 @@ from dolfin_mpm.nonlocal_average import NonlocalAverage
 from dolfin_mpm.parallel import DistributedAverage, migrate
 from dolfin_mpm.particles import Particles, Sink
 from dolfin_mpm.progress import Progress
-from dolfin_mpm.tensor import det, split_velocity_gradient
+from dolfin_mpm.tensor import det
 from dolfin_mpm.transfer import gradient, internal_force, interpolate, scatter
 
 __all__ = ["SimulationError", "Solver"]
@@ -287,14 +287,13 @@ class Solver:
     def _update_stress(self, L: np.ndarray, dt: float) -> None:
         """Stress and state from each material; volume from ``det(I + dt L)``."""
         P = self.particles
-        d, W = split_velocity_gradient(L)
         if len(self.materials) == 1:
-            P.sigma = self.materials[0].update(P.sigma, d, W, dt, P.state)
+            P.sigma = self.materials[0].update(P.sigma, L, dt, P.state)
         else:
             for k, material in enumerate(self.materials):
                 idx = np.flatnonzero(P.material == k)
                 state = {name: P.state[name][idx] for name in material.state_fields()}
-                P.sigma[idx] = material.update(P.sigma[idx], d[idx], W[idx], dt, state)
+                P.sigma[idx] = material.update(P.sigma[idx], L[idx], dt, state)
                 for name, a in state.items():
                     P.state[name][idx] = a
         P.volume *= self._volume_ratio(L, dt)
@@ -326,9 +325,8 @@ class Solver:
             with self._stage("g2p"):
                 v, v_grid, L = self._g2p(basis, dt)
             with self._stage("constitutive"):
-                d, W = split_velocity_gradient(L)
                 with self._stage("return_mapping"):
-                    trial = mat.trial(P.sigma, d, W, dt)
+                    trial = mat.trial(P.sigma, L, dt)
                     de = mat.increment(trial, dt)
                 with self._stage("averaging"):
                     de_bar = avg(de)

@@ -16,7 +16,6 @@ __all__ = [
     "from_mandel",
     "invariants",
     "particle_first",
-    "split_velocity_gradient",
     "to_mandel",
 ]
 
@@ -45,29 +44,6 @@ def det(A: np.ndarray) -> np.ndarray:
         - a[0, 1] * (a[1, 0] * a[2, 2] - a[1, 2] * a[2, 0])
         + a[0, 2] * (a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0])
     )
-
-
-def split_velocity_gradient(L: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Rate of deformation ``d = sym L`` and spin ``W = skew L`` as 3x3 tensors.
-
-    Args:
-        L: velocity gradient ``L_ij = dv_i/dx_j`` [1/s], ``shape=(n, gdim, gdim)``.
-
-    Returns:
-        ``(d, W)``, each ``shape=(n, 3, 3)``; in 2D the out-of-plane rows are zero
-        (plane strain). The paper's spin is ``omega = -W``.
-
-    """
-    Lc = component_first(L)
-    g, n = Lc.shape[0], Lc.shape[2]
-    d, W = np.zeros((3, 3, n)), np.zeros((3, 3, n))
-    for i in range(g):
-        d[i, i] = Lc[i, i]
-        for j in range(i + 1, g):
-            d[i, j] = d[j, i] = 0.5 * (Lc[i, j] + Lc[j, i])
-            W[i, j] = 0.5 * (Lc[i, j] - Lc[j, i])
-            W[j, i] = -W[i, j]
-    return particle_first(d), particle_first(W)
 
 
 def deviator(sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

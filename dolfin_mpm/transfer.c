@@ -4,13 +4,16 @@
  * N[a n + p] and gradients dN[(a gdim + j) n + p] (component-first, as locate.Basis). Nodal
  * arrays are (num_nodes, k) and particle arrays (n, k), row-major. Sums run over the cell's
  * nodes in order, node by node of the cells for the nodal sums: the terms and their order are
- * those of the sparse products they replace.
+ * those of the sparse products they replace. Each loop is compiled for 2D and 3D with the
+ * dimension a constant (fully unrolled inner loops) and once for any other.
  */
 #include <stdint.h>
 
+#define INLINE static inline __attribute__((always_inline))
+
 /* out[dofs[a, p], c] += N[a, p] values[p, c]; out (num_nodes, k) holds the sums on entry. */
-void scatter(int64_t n, int32_t nn, const int64_t *restrict dofs, const double *restrict N, int32_t k,
-             const double *restrict values, double *restrict out)
+INLINE void scatter_of(int64_t n, int32_t nn, const int64_t *restrict dofs, const double *restrict N, int32_t k,
+                       const double *restrict values, double *restrict out)
 {
   for (int32_t a = 0; a < nn; ++a)
     for (int64_t p = 0; p < n; ++p)
@@ -24,8 +27,9 @@ void scatter(int64_t n, int32_t nn, const int64_t *restrict dofs, const double *
 
 /* out[dofs[a, p], i] += sum_j (sigma_ij[p] volume[p]) dN_aj[p]: the internal forces R of the
  * stresses sigma, component-first (3, 3, n); out (num_nodes, gdim) holds the sums on entry. */
-void internal_force(int64_t n, int32_t gdim, const int64_t *restrict dofs, const double *restrict dN,
-                    const double *restrict sigma, const double *restrict volume, double *restrict out)
+INLINE void internal_force_of(int64_t n, int32_t gdim, const int64_t *restrict dofs, const double *restrict dN,
+                              const double *restrict sigma, const double *restrict volume,
+                              double *restrict out)
 {
   const int32_t nn = gdim + 1;
   for (int32_t a = 0; a < nn; ++a)
@@ -43,8 +47,8 @@ void internal_force(int64_t n, int32_t gdim, const int64_t *restrict dofs, const
 }
 
 /* out[p, c] = sum_a N[a, p] nodal[dofs[a, p], c], out (n, k). */
-void interpolate(int64_t n, int32_t nn, const int64_t *restrict dofs, const double *restrict N, int32_t k,
-                 const double *restrict nodal, double *restrict out)
+INLINE void interpolate_of(int64_t n, int32_t nn, const int64_t *restrict dofs, const double *restrict N,
+                           int32_t k, const double *restrict nodal, double *restrict out)
 {
   for (int64_t p = 0; p < n; ++p)
     for (int32_t c = 0; c < k; ++c)
@@ -58,8 +62,8 @@ void interpolate(int64_t n, int32_t nn, const int64_t *restrict dofs, const doub
 
 /* out[i, j, p] = sum_a nodal[dofs[a, p], i] dN[a, j, p]: the gradient of a nodal field with k
  * components, component-first (k, gdim, n). */
-void gradient(int64_t n, int32_t gdim, const int64_t *restrict dofs, const double *restrict dN, int32_t k,
-              const double *restrict nodal, double *restrict out)
+INLINE void gradient_of(int64_t n, int32_t gdim, const int64_t *restrict dofs, const double *restrict dN,
+                        int32_t k, const double *restrict nodal, double *restrict out)
 {
   const int32_t nn = gdim + 1;
   for (int64_t p = 0; p < n; ++p)
@@ -72,3 +76,50 @@ void gradient(int64_t n, int32_t gdim, const int64_t *restrict dofs, const doubl
         out[(i * gdim + j) * n + p] = sum;
       }
 }
+
+/* The exported loops, with the common sizes as constants: 2D (3 nodes) and 3D (4 nodes), k = 1
+ * or gdim components. */
+void scatter(int64_t n, int32_t nn, const int64_t *dofs, const double *N, int32_t k, const double *values,
+             double *out)
+{
+  if (nn == 3 && k <= 2)
+    k == 1 ? scatter_of(n, 3, dofs, N, 1, values, out) : scatter_of(n, 3, dofs, N, 2, values, out);
+  else if (nn == 4 && (k == 1 || k == 3))
+    k == 1 ? scatter_of(n, 4, dofs, N, 1, values, out) : scatter_of(n, 4, dofs, N, 3, values, out);
+  else
+    scatter_of(n, nn, dofs, N, k, values, out);
+}
+
+void internal_force(int64_t n, int32_t gdim, const int64_t *dofs, const double *dN, const double *sigma,
+                    const double *volume, double *out)
+{
+  if (gdim == 2)
+    internal_force_of(n, 2, dofs, dN, sigma, volume, out);
+  else if (gdim == 3)
+    internal_force_of(n, 3, dofs, dN, sigma, volume, out);
+  else
+    internal_force_of(n, gdim, dofs, dN, sigma, volume, out);
+}
+
+void interpolate(int64_t n, int32_t nn, const int64_t *dofs, const double *N, int32_t k, const double *nodal,
+                 double *out)
+{
+  if (nn == 3 && k == 2)
+    interpolate_of(n, 3, dofs, N, 2, nodal, out);
+  else if (nn == 4 && k == 3)
+    interpolate_of(n, 4, dofs, N, 3, nodal, out);
+  else
+    interpolate_of(n, nn, dofs, N, k, nodal, out);
+}
+
+void gradient(int64_t n, int32_t gdim, const int64_t *dofs, const double *dN, int32_t k, const double *nodal,
+              double *out)
+{
+  if (gdim == 2 && k == 2)
+    gradient_of(n, 2, dofs, dN, 2, nodal, out);
+  else if (gdim == 3 && k == 3)
+    gradient_of(n, 3, dofs, dN, 3, nodal, out);
+  else
+    gradient_of(n, gdim, dofs, dN, k, nodal, out);
+}
+

@@ -68,7 +68,7 @@ def test_associated_slope_is_the_classical_plane_strain_match():
 def test_return_lands_on_the_cone_or_its_apex(psi):
     mat = material(psi)
     sigma, deps = around_apex(mat)
-    trial = mat.trial(sigma, from_mandel(deps), np.zeros_like(sigma), 1.0)
+    trial = mat.trial(sigma, from_mandel(deps), 1.0)
     dlam = mat.increment(trial)
     sig, _, new = step(mat, sigma, deps)
     p, q = invariants(sig)
@@ -110,7 +110,7 @@ def test_tangent_matches_finite_differences_at_and_near_the_apex(psi):
 
 def _regime(mat, sigma, deps):
     """0 elastic, 1 cone, 2 apex."""
-    dlam = mat.increment(mat.trial(sigma, from_mandel(deps), np.zeros_like(sigma), 1.0))
+    dlam = mat.increment(mat.trial(sigma, from_mandel(deps), 1.0))
     return np.where(np.isinf(dlam), 2, np.where(dlam > 0.0, 1, 0))
 
 
@@ -154,7 +154,7 @@ def plane_strain_flow_tangent(mat, m, M_g, p=5e4):
     assert invariants(sigma)[1][0] == pytest.approx(q, rel=1e-12)
     deps = np.zeros((1, 6))
     deps[0, [0, 1]] = 1e-9 * np.array([1.0, -1.0])  # loading: shear in the flow's own axes
-    trial = mat.trial(sigma, from_mandel(deps), np.zeros_like(sigma), 1.0)
+    trial = mat.trial(sigma, from_mandel(deps), 1.0)
     if isinstance(mat, MohrCoulombDruckerPrager):
         inc = mat.increment(trial)
         D = mat.tangent(trial, inc)
@@ -199,7 +199,7 @@ def test_mpm_update_is_the_small_strain_step_without_spin():
     dt = 1e-3
     state = {"eps_p": np.full(len(sigma), 0.01)}
     sig_fe, _, new = mat.small_strain_update(sigma, from_mandel(deps), state)
-    sig = mat.update(sigma, from_mandel(deps) / dt, np.zeros_like(sigma), dt, state)
+    sig = mat.update(sigma, from_mandel(deps) / dt, dt, state)
     np.testing.assert_allclose(sig, sig_fe, rtol=1e-12, atol=1e-9 * mat.tension_limit)
     np.testing.assert_allclose(state["eps_p"], new["eps_p"], rtol=1e-12)
     assert np.any(new["eps_p"] > 0.01)

@@ -20,7 +20,7 @@ def states(n=200, p_mean=40e3, spread=20e3):
 
 def return_map(mat, sigma, deps, eps_p):
     """Stress after one implicit small-strain step and the increment of the return."""
-    trial = mat.trial(sigma, from_mandel(deps), np.zeros((len(sigma), 3, 3)), 1.0)
+    trial = mat.trial(sigma, from_mandel(deps), 1.0)
     if isinstance(mat, VonMises):
         inc = mat.increment(trial, eps_p)
         return trial, inc, mat.stress(trial, inc)

@@ -33,15 +33,13 @@ class Material(ABC):
         return {}
 
     @abstractmethod
-    def update(
-        self, sigma: np.ndarray, d: np.ndarray, W: np.ndarray, dt: float, state: dict[str, np.ndarray]
-    ) -> np.ndarray:
+    def update(self, sigma: np.ndarray, L: np.ndarray, dt: float, state: dict[str, np.ndarray]) -> np.ndarray:
         """Advance the stress over one step.
 
         Args:
             sigma: Cauchy stress at the start of the step [Pa], ``shape=(n, 3, 3)``.
-            d: rate of deformation [1/s], ``shape=(n, 3, 3)``.
-            W: spin ``skew(grad v)`` [1/s], ``shape=(n, 3, 3)``.
+            L: velocity gradient ``L_ij = dv_i/dx_j`` [1/s], ``shape=(n, gdim, gdim)``: rate of
+                deformation ``d = sym L``, spin ``W = skew L`` (plane strain in 2D).
             dt: time step [s].
             state: this material's state arrays (updated in place), particle axis first.
 

@@ -32,14 +32,26 @@ and its apex shift to ``p = -c cot(phi)``, where the stress is ``c cot(phi) I``.
 FE solver uses that with :meth:`tangent`, the consistent tangent of the return mapping.
 """
 
+import ctypes
+import functools
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
+from dolfin_mpm import native
 from dolfin_mpm.materials.base import check_range
 from dolfin_mpm.materials.radial_return import IsochoricPlastic, Trial
 
 __all__ = ["DruckerPragerViscoplastic"]
+
+_REAL, _NUMBER = native.array(np.float64), ctypes.c_double
+_SIGNATURES = {"dp_increment": (ctypes.c_int64, _REAL, _REAL, *[_NUMBER] * 5, _REAL)}
+
+
+@functools.cache
+def _kernels() -> ctypes.CDLL:
+    return native.load(Path(__file__).with_suffix(".c"), _SIGNATURES)
 
 
 @dataclass(frozen=True)
@@ -68,6 +80,7 @@ class DruckerPragerViscoplastic(IsochoricPlastic):
         check_range("gamma", self.gamma, 0.0, np.inf, closed=(False, True))
         check_range("N", self.N, 0.0, np.inf)
         check_range("c", self.c, 0.0, np.inf, closed=(True, False))
+        _kernels()  # compiled now, before any long work
 
     @property
     def m(self) -> float:
@@ -88,22 +101,22 @@ class DruckerPragerViscoplastic(IsochoricPlastic):
     def increment(self, trial: Trial, dt: float) -> np.ndarray:
         """Local equivalent viscoplastic strain increment ``de = dt * e_vp`` (backward Euler).
 
-        Solves ``de = dt 3/2 gamma <Phi(q)>`` with ``q = q_trial - 2 G de`` for ``de >= 0``;
-        at the apex (``p <= -c cot(phi)``) ``de = q_trial / 2G``. ``shape=(n,)``.
+        Solves ``de = dt 3/2 gamma <Phi(q)>`` with ``q = q_trial - 2 G de`` for ``de >= 0``
+        (closed form for N = 1, safeguarded Newton otherwise); at the apex
+        (``p <= -c cot(phi)``) ``de = q_trial / 2G``. ``shape=(n,)``.
         """
-        G, mp = self.G, self.m * (trial.p + self.tension_limit)
-        de = np.zeros_like(trial.q)
-        apex = mp <= 0.0
-        de[apex] = trial.q[apex] / (2.0 * G)
-        act = ~apex & (trial.q > mp)
-        mp_a = mp[act]
-        x_tr = (trial.q[act] - mp_a) / mp_a  # relative overstress of the trial state
-        if np.isinf(self.gamma):
-            x = 0.0
-        else:
-            a = 3.0 * G * self.gamma * dt / mp_a
-            x = x_tr / (1.0 + a) if self.N == 1.0 else _solve_overstress(x_tr, a, self.N)
-        de[act] = (x_tr - x) * mp_a / (2.0 * G)
+        de = np.empty_like(trial.q)
+        _kernels().dp_increment(
+            len(de),
+            trial.p,
+            trial.q,
+            self.m,
+            self.tension_limit,
+            self.G,
+            3.0 * self.G * self.gamma * dt,
+            self.N,
+            de,
+        )
         return de
 
     def stress(self, trial: Trial, de: np.ndarray, de_nonlocal: np.ndarray | None = None) -> np.ndarray:
@@ -149,13 +162,13 @@ class DruckerPragerViscoplastic(IsochoricPlastic):
         Returns the stress, the consistent tangent (Mandel, ``shape=(n, 6, 6)``) and the new
         state, leaving ``state`` untouched.
         """
-        trial = self.trial(sigma, deps / dt, np.zeros_like(deps), dt)
+        trial = self.trial(sigma, deps / dt, dt)
         de = self.increment(trial, dt)
         new = {"eps_vp_rate": de / dt, "eps_vp_rate_nonlocal": de / dt, "eps_vp": state["eps_vp"] + de}
         return self.stress(trial, de), self.tangent(trial, de, dt), new
 
-    def update(self, sigma, d, W, dt, state):
-        trial = self.trial(sigma, d, W, dt)
+    def update(self, sigma, L, dt, state):
+        trial = self.trial(sigma, L, dt)
         de = self.increment(trial, dt)
         self.record(state, de, de, dt)
         return self.stress(trial, de)
@@ -166,21 +179,3 @@ class DruckerPragerViscoplastic(IsochoricPlastic):
         state["eps_vp_rate"][:] = de / dt
         state["eps_vp_rate_nonlocal"][:] = de_nonlocal / dt
         state["eps_vp"][:] += np.maximum(de, de_nonlocal)
-
-
-def _solve_overstress(x_tr: np.ndarray, a: np.ndarray, N: float, tol: float = 1e-13) -> np.ndarray:
-    """Root ``x`` in ``[0, x_tr]`` of ``x + a x^N = x_tr`` (safeguarded Newton, vectorised)."""
-    lo, hi = np.zeros_like(x_tr), x_tr.copy()
-    x = np.minimum(x_tr, (x_tr / a) ** (1.0 / N))  # the root when a x^N dominates
-    for _ in range(100):
-        h = x + a * x**N - x_tr
-        lo = np.where(h < 0.0, x, lo)
-        hi = np.where(h > 0.0, x, hi)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            x_new = x - h / (1.0 + a * N * x ** (N - 1.0))
-        bad = ~((x_new > lo) & (x_new < hi))
-        x_new[bad] = 0.5 * (lo[bad] + hi[bad])
-        if np.all(np.abs(x_new - x) <= tol * np.maximum(x_tr, 1e-300)):
-            return x_new
-        x = x_new
-    return x

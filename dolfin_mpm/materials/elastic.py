@@ -23,7 +23,7 @@ __all__ = ["LinearElastic"]
 _REAL = native.array(np.float64)
 _SIGNATURES = {
     "hypoelastic_trial": (
-        ctypes.c_int64, _REAL, _REAL, _REAL, ctypes.c_double, ctypes.c_double, ctypes.c_double,
+        ctypes.c_int64, ctypes.c_int32, _REAL, _REAL, ctypes.c_double, ctypes.c_double, ctypes.c_double,
         _REAL, _REAL, _REAL,
     ),
 }  # fmt: skip
@@ -68,13 +68,14 @@ class LinearElastic(Material):
     def p_wave_speed(self) -> float:
         return float(np.sqrt((self.K + 4.0 * self.G / 3.0) / self.rho))
 
-    def predictor(self, sigma, d, W, dt) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def predictor(self, sigma, L, dt) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The elastic update of ``sigma`` split into pressure, deviator and equivalent stress.
 
         Args:
-            sigma, d, W: stress [Pa], rate of deformation and spin [1/s], each
-                ``shape=(n, 3, 3)``; ``sigma`` and ``d`` symmetric, ``W`` skew (their upper
-                triangles are read).
+            sigma: stress [Pa], ``shape=(n, 3, 3)``, symmetric (its upper triangle is read).
+            L: velocity gradient [1/s], ``shape=(n, gdim, gdim)``; rate of deformation
+                ``d = sym L``, spin ``W = skew L``, zero out of the plane in 2D (plane strain).
+                An implicit small-strain caller passes the strain increment with ``dt = 1``.
             dt: time step [s].
 
         Returns:
@@ -82,14 +83,14 @@ class LinearElastic(Material):
             (component-first) and ``q = sqrt(3/2 s:s)`` [Pa] ``shape=(n,)``.
 
         """
-        sigma, d, W = (component_first(np.asarray(a, dtype=np.float64)) for a in (sigma, d, W))
+        sigma, L = (component_first(np.asarray(a, dtype=np.float64)) for a in (sigma, L))
         n = sigma.shape[-1]
         p, s, q = np.empty(n), np.empty((3, 3, n)), np.empty(n)
-        _kernels().hypoelastic_trial(n, sigma, d, W, dt, self.K, self.G, p, s, q)
+        _kernels().hypoelastic_trial(n, L.shape[0], sigma, L, dt, self.K, self.G, p, s, q)
         return p, s, q
 
-    def update(self, sigma, d, W, dt, state):
-        p, s, _ = self.predictor(sigma, d, W, dt)
+    def update(self, sigma, L, dt, state):
+        p, s, _ = self.predictor(sigma, L, dt)
         for i in range(3):
             s[i, i] -= p
         return particle_first(s)

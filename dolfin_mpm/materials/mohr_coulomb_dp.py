@@ -123,13 +123,13 @@ class MohrCoulombDruckerPrager(IsochoricPlastic):
         Returns the stress, the consistent tangent (Mandel, ``shape=(n, 6, 6)``) and the new
         state, leaving ``state`` untouched.
         """
-        trial = self.trial(sigma, deps, np.zeros_like(deps), 1.0)
+        trial = self.trial(sigma, deps, 1.0)
         dlam = self.increment(trial)
         new = {"eps_p": state["eps_p"] + self._applied(trial, dlam)}
         return self.stress(trial, dlam), self.tangent(trial, dlam), new
 
-    def update(self, sigma, d, W, dt, state):
-        trial = self.trial(sigma, d, W, dt)
+    def update(self, sigma, L, dt, state):
+        trial = self.trial(sigma, L, dt)
         dlam = self.increment(trial)
         state["eps_p"][:] += self._applied(trial, dlam)
         return self.stress(trial, dlam)

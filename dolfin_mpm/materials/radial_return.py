@@ -15,14 +15,27 @@ enter as Mandel 6-vectors ``(xx, yy, zz, sqrt2 yz, sqrt2 xz, sqrt2 xy)``, so tha
 strains by a plain matrix product.
 """
 
+import ctypes
+import functools
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
+from dolfin_mpm import native
 from dolfin_mpm.materials.elastic import LinearElastic
 from dolfin_mpm.tensor import particle_first, to_mandel
 
 __all__ = ["IsochoricPlastic", "Trial"]
+
+_REAL = native.array(np.float64)
+_SIGNATURES = {"radial_stress": (ctypes.c_int64, *[_REAL] * 5)}
+
+
+@functools.cache
+def _kernels() -> ctypes.CDLL:
+    return native.load(Path(__file__).with_suffix(".c"), _SIGNATURES)
+
 
 _ONE = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])
 _I_DEV = np.eye(6) - np.outer(_ONE, _ONE) / 3.0
@@ -47,23 +60,25 @@ class Trial:
 class IsochoricPlastic(LinearElastic):
     """Hypo-elastic solid whose plastic flow is deviatoric: the parts every return mapping shares."""
 
-    def trial(self, sigma: np.ndarray, d: np.ndarray, W: np.ndarray, dt: float) -> Trial:
+    def __post_init__(self):
+        super().__post_init__()
+        _kernels()  # compiled now, before any long work
+
+    def trial(self, sigma: np.ndarray, L: np.ndarray, dt: float) -> Trial:
         """Elastic predictor: the hypo-elastic update of :class:`LinearElastic`, split into p and s.
 
-        An implicit small-strain caller passes the strain increment as ``d`` with ``dt = 1``
-        and ``W = 0``.
+        An implicit small-strain caller passes the strain increment as ``L`` with ``dt = 1``.
         """
-        p, s, q = self.predictor(sigma, d, W, dt)
+        p, s, q = self.predictor(sigma, L, dt)
         return Trial(p=p, s=s, q=q)
 
     @staticmethod
     def radial_stress(trial: Trial, q: np.ndarray, p: np.ndarray) -> np.ndarray:
         """``(q / q_trial) s_trial - p I``, ``shape=(n, 3, 3)``; no deviator where ``q_trial = 0``."""
-        scale = np.divide(q, trial.q, out=np.zeros_like(q), where=trial.q > 0.0)
-        sig = trial.s * scale
-        for i in range(3):
-            sig[i, i] -= p
-        return particle_first(sig)
+        sigma = np.empty_like(trial.s)
+        q, p = (np.ascontiguousarray(np.broadcast_to(a, trial.q.shape), dtype=np.float64) for a in (q, p))
+        _kernels().radial_stress(len(q), trial.s, trial.q, q, p, sigma)
+        return particle_first(sigma)
 
     def radial_tangent(
         self, trial: Trial, q: np.ndarray, dq_dqtrial: np.ndarray, dq_dp: np.ndarray

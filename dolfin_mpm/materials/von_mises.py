@@ -60,12 +60,12 @@ class VonMises(IsochoricPlastic):
         Returns the stress, the consistent tangent (Mandel, ``shape=(n, 6, 6)``) and the new
         state, leaving ``state`` untouched.
         """
-        trial = self.trial(sigma, deps, np.zeros_like(deps), 1.0)
+        trial = self.trial(sigma, deps, 1.0)
         deps_p = self.increment(trial, state["eps_p"])
         return self.stress(trial, deps_p), self.tangent(trial, deps_p), {"eps_p": state["eps_p"] + deps_p}
 
-    def update(self, sigma, d, W, dt, state):
-        trial = self.trial(sigma, d, W, dt)
+    def update(self, sigma, L, dt, state):
+        trial = self.trial(sigma, L, dt)
         deps_p = self.increment(trial, state["eps_p"])
         state["eps_p"][:] += deps_p
         return self.stress(trial, deps_p)
