@@ -11,17 +11,19 @@ vectorises).
 """
 
 import ctypes
+import functools
 import hashlib
 import os
 import platform
 import shlex
 import subprocess
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["array", "cache_dir", "load"]
+__all__ = ["array", "cache_dir", "kernels", "load"]
 
 FLAGS = ("-O3", "-std=c99", "-fno-math-errno", "-fPIC", "-shared")
 
@@ -49,6 +51,11 @@ def load(source: Path, signatures: dict[str, tuple]) -> ctypes.CDLL:
     for name, argtypes in signatures.items():
         getattr(lib, name).argtypes, getattr(lib, name).restype = argtypes, None
     return lib
+
+
+def kernels(source: Path, signatures: dict[str, tuple]) -> Callable[[], ctypes.CDLL]:
+    """A function returning :func:`load` ``(source, signatures)``, loaded on its first call only."""
+    return functools.cache(functools.partial(load, source, signatures))
 
 
 def _compile(compiler: list[str], source: Path, library: Path) -> None:

@@ -22,7 +22,6 @@ value once per run) and the weight pass hands the products only the pairs closer
 """
 
 import ctypes
-import functools
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -49,9 +48,7 @@ _SIGNATURES = {
 }  # fmt: skip
 
 
-@functools.cache
-def _kernels() -> ctypes.CDLL:
-    return native.load(Path(__file__).with_suffix(".c"), _SIGNATURES)
+_kernels = native.kernels(Path(__file__).with_suffix(".c"), _SIGNATURES)
 
 
 @dataclass

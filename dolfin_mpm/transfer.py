@@ -8,7 +8,6 @@ through it separately.
 """
 
 import ctypes
-import functools
 from pathlib import Path
 
 import numpy as np
@@ -31,9 +30,7 @@ _SIGNATURES = {
 }
 
 
-@functools.cache
-def _kernels() -> ctypes.CDLL:
-    return native.load(Path(__file__).with_suffix(".c"), _SIGNATURES)
+_kernels = native.kernels(Path(__file__).with_suffix(".c"), _SIGNATURES)
 
 
 def _as_real(a: np.ndarray) -> np.ndarray:

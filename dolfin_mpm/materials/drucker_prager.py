@@ -33,7 +33,6 @@ FE solver uses that with :meth:`tangent`, the consistent tangent of the return m
 """
 
 import ctypes
-import functools
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -49,9 +48,7 @@ _REAL, _NUMBER = native.array(np.float64), ctypes.c_double
 _SIGNATURES = {"dp_increment": (ctypes.c_int64, _REAL, _REAL, *[_NUMBER] * 5, _REAL)}
 
 
-@functools.cache
-def _kernels() -> ctypes.CDLL:
-    return native.load(Path(__file__).with_suffix(".c"), _SIGNATURES)
+_kernels = native.kernels(Path(__file__).with_suffix(".c"), _SIGNATURES)
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,6 @@ arrays through memory, a quarter of the paper's step.
 """
 
 import ctypes
-import functools
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -29,9 +28,7 @@ _SIGNATURES = {
 }  # fmt: skip
 
 
-@functools.cache
-def _kernels() -> ctypes.CDLL:
-    return native.load(Path(__file__).with_name("hypoelastic.c"), _SIGNATURES)
+_kernels = native.kernels(Path(__file__).with_name("hypoelastic.c"), _SIGNATURES)
 
 
 @dataclass(frozen=True)

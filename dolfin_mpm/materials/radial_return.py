@@ -16,7 +16,6 @@ strains by a plain matrix product.
 """
 
 import ctypes
-import functools
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -32,9 +31,7 @@ _REAL = native.array(np.float64)
 _SIGNATURES = {"radial_stress": (ctypes.c_int64, *[_REAL] * 5)}
 
 
-@functools.cache
-def _kernels() -> ctypes.CDLL:
-    return native.load(Path(__file__).with_suffix(".c"), _SIGNATURES)
+_kernels = native.kernels(Path(__file__).with_suffix(".c"), _SIGNATURES)
 
 
 _ONE = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])
