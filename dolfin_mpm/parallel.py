@@ -137,7 +137,10 @@ class Halo:
         shape = np.floor((hi - lo) / margin).astype(np.int64) + 3  # one spare cube each side
         cube = np.floor((x - lo) / margin).astype(np.int64) + 1
         key = np.ravel_multi_index(tuple(cube.T), shape)
-        occupied = comm.allgather(np.unique(key))
+        # Sets of cubes as flags over all cubes (linear time) where there are at most 8 cubes
+        # per particle, sorted keys otherwise (a sparse cloud).
+        flags = np.prod(shape) <= 8 * len(x)
+        occupied = comm.allgather(_occupied(key, np.prod(shape)) if flags else np.unique(key))
         offsets = np.stack(np.meshgrid(*[[-1, 0, 1]] * gdim, indexing="ij"), -1).reshape(-1, gdim)
         self.send = []  # per rank: indices of the particles it gets
         for rank, keys in enumerate(occupied):
@@ -146,9 +149,21 @@ class Halo:
                 continue
             near = np.unravel_index(keys, shape)
             near = np.ravel_multi_index((np.stack(near, -1)[:, None, :] + offsets).reshape(-1, gdim).T, shape)
-            self.send.append(np.flatnonzero(np.isin(key, near)))
+            if flags:
+                is_near = np.zeros(np.prod(shape), dtype=bool)
+                is_near[near] = True
+                self.send.append(np.flatnonzero(is_near[key]))
+            else:
+                self.send.append(np.flatnonzero(np.isin(key, near)))
 
     def gather(self, values: np.ndarray) -> np.ndarray:
         """The halo's copies of ``values`` (particle axis first), from all other ranks in turn."""
         received = self.comm.alltoall([values[s] for s in self.send])
         return np.concatenate(received) if received else values[:0]
+
+
+def _occupied(key: np.ndarray, num_cubes: int) -> np.ndarray:
+    """The distinct values of ``key`` (cube numbers below ``num_cubes``), sorted."""
+    occupied = np.zeros(num_cubes, dtype=bool)
+    occupied[key] = True
+    return np.flatnonzero(occupied)

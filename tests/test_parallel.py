@@ -44,14 +44,16 @@ def test_migration_moves_particles_to_the_owner_and_keeps_totals():
     assert np.array_equal(np.sort(ids), np.arange(before[0]))
 
 
+# r = 0.06 in 3D: more than 8 cubes of side r per particle, the halo's path for sparse clouds.
 @pytest.mark.parametrize("dim", [2, 3])
 @pytest.mark.parametrize("weight", ["cubic", "constant", "gaussian"])
-def test_average_with_halo_equals_the_serial_average(dim, weight):
+@pytest.mark.parametrize("radius", [0.15, 0.06])
+def test_average_with_halo_equals_the_serial_average(dim, weight, radius):
     rng = np.random.default_rng(3)  # the same cloud on every rank
     n = 600
     x, volume, e = rng.uniform(0.0, 1.0, (n, dim)), rng.uniform(0.5, 1.5, n), rng.normal(size=n)
     ids = np.arange(n)
-    serial = dm.NonlocalAverage(0.15, weight)
+    serial = dm.NonlocalAverage(radius, weight)
     serial.update(x, volume, ids)
     expected = serial(e)
     # This rank's share: a slab in x, an empty rank 1 of 3 when run on 3 ranks or more.
@@ -59,7 +61,7 @@ def test_average_with_halo_equals_the_serial_average(dim, weight):
     if comm.size > 2:
         slab[slab == 1] = 0  # rank 1 holds none; rank 0 takes its slab
     mine = np.flatnonzero(slab == comm.rank)
-    average = DistributedAverage(dm.NonlocalAverage(0.15, weight), comm)
+    average = DistributedAverage(dm.NonlocalAverage(radius, weight), comm)
     average.update(x[mine], volume[mine], ids[mine])
     assert average(e[mine]) == pytest.approx(expected[mine], rel=1e-12, abs=1e-12)
 
