@@ -46,8 +46,6 @@ _SIGNATURES = {
     "pair_apply": (ctypes.c_int64, ctypes.c_int64, _INDEX, _OFFSET, _INDEX, _REAL, _REAL, _REAL),
     "pair_sort": (ctypes.c_int64, ctypes.c_int64, _INDEX, _INDEX, _INDEX, _INDEX, _OFFSET),
 }  # fmt: skip
-
-
 _kernels = native.kernels(Path(__file__).with_suffix(".c"), _SIGNATURES)
 
 

@@ -139,8 +139,9 @@ class Halo:
         key = np.ravel_multi_index(tuple(cube.T), shape)
         # Sets of cubes as flags over all cubes (linear time) where there are at most 8 cubes
         # per particle, sorted keys otherwise (a sparse cloud).
-        flags = np.prod(shape) <= 8 * len(x)
-        occupied = comm.allgather(_occupied(key, np.prod(shape)) if flags else np.unique(key))
+        num_cubes = int(np.prod(shape))
+        dense = num_cubes <= 8 * len(x)
+        occupied = comm.allgather(np.flatnonzero(_flags(key, num_cubes)) if dense else np.unique(key))
         offsets = np.stack(np.meshgrid(*[[-1, 0, 1]] * gdim, indexing="ij"), -1).reshape(-1, gdim)
         self.send = []  # per rank: indices of the particles it gets
         for rank, keys in enumerate(occupied):
@@ -149,12 +150,8 @@ class Halo:
                 continue
             near = np.unravel_index(keys, shape)
             near = np.ravel_multi_index((np.stack(near, -1)[:, None, :] + offsets).reshape(-1, gdim).T, shape)
-            if flags:
-                is_near = np.zeros(np.prod(shape), dtype=bool)
-                is_near[near] = True
-                self.send.append(np.flatnonzero(is_near[key]))
-            else:
-                self.send.append(np.flatnonzero(np.isin(key, near)))
+            is_near = _flags(near, num_cubes)[key] if dense else np.isin(key, near)
+            self.send.append(np.flatnonzero(is_near))
 
     def gather(self, values: np.ndarray) -> np.ndarray:
         """The halo's copies of ``values`` (particle axis first), from all other ranks in turn."""
@@ -162,8 +159,8 @@ class Halo:
         return np.concatenate(received) if received else values[:0]
 
 
-def _occupied(key: np.ndarray, num_cubes: int) -> np.ndarray:
-    """The distinct values of ``key`` (cube numbers below ``num_cubes``), sorted."""
-    occupied = np.zeros(num_cubes, dtype=bool)
-    occupied[key] = True
-    return np.flatnonzero(occupied)
+def _flags(cubes: np.ndarray, num_cubes: int) -> np.ndarray:
+    """The set ``cubes`` (cube numbers below ``num_cubes``) as flags, ``shape=(num_cubes,)``."""
+    flags = np.zeros(num_cubes, dtype=bool)
+    flags[cubes] = True
+    return flags

@@ -28,8 +28,6 @@ _SIGNATURES = {
         ("gradient", (_INT,)),
     )
 }
-
-
 _kernels = native.kernels(Path(__file__).with_suffix(".c"), _SIGNATURES)
 
 

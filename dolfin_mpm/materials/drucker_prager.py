@@ -46,8 +46,6 @@ __all__ = ["DruckerPragerViscoplastic"]
 
 _REAL, _NUMBER = native.array(np.float64), ctypes.c_double
 _SIGNATURES = {"dp_increment": (ctypes.c_int64, _REAL, _REAL, *[_NUMBER] * 5, _REAL)}
-
-
 _kernels = native.kernels(Path(__file__).with_suffix(".c"), _SIGNATURES)
 
 

@@ -26,8 +26,6 @@ _SIGNATURES = {
         _REAL, _REAL, _REAL,
     ),
 }  # fmt: skip
-
-
 _kernels = native.kernels(Path(__file__).with_name("hypoelastic.c"), _SIGNATURES)
 
 

@@ -29,8 +29,6 @@ __all__ = ["IsochoricPlastic", "Trial"]
 
 _REAL = native.array(np.float64)
 _SIGNATURES = {"radial_stress": (ctypes.c_int64, *[_REAL] * 5)}
-
-
 _kernels = native.kernels(Path(__file__).with_suffix(".c"), _SIGNATURES)
 
 
@@ -73,7 +71,7 @@ class IsochoricPlastic(LinearElastic):
     def radial_stress(trial: Trial, q: np.ndarray, p: np.ndarray) -> np.ndarray:
         """``(q / q_trial) s_trial - p I``, ``shape=(n, 3, 3)``; no deviator where ``q_trial = 0``."""
         sigma = np.empty_like(trial.s)
-        q, p = (np.ascontiguousarray(np.broadcast_to(a, trial.q.shape), dtype=np.float64) for a in (q, p))
+        q, p = (np.ascontiguousarray(a, dtype=np.float64) for a in (q, p))
         _kernels().radial_stress(len(q), trial.s, trial.q, q, p, sigma)
         return particle_first(sigma)
 
