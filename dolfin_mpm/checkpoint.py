@@ -1,8 +1,9 @@
 """Checkpoints: everything a run carries from one step to the next, in one HDF5 file.
 
 Per rank: every particle array (``cell`` and the material state included), the sinks'
-records and the non-local average's reference positions (see
-:meth:`NonlocalAverage.state`); for the run: time, step, time step, damping, the events
+records, the non-local average's reference positions (see :meth:`NonlocalAverage.state`)
+and the solver's last changes of the internal forces (its fixed-point loop extrapolates
+them); for the run: time, step, time step, damping, the events
 applied and the recorded history. Rank 0 gathers and writes it under a temporary name,
 flushes it to disk and renames it over the previous checkpoint, so that a crash at any moment
 leaves the last complete one. Restoring it into a freshly built scenario continues the run
@@ -20,7 +21,7 @@ from dolfin_mpm.particles import Particles
 __all__ = ["FORMAT", "CheckpointError", "read", "restore", "write"]
 
 #: Layout version, stored in the file.
-FORMAT = 1
+FORMAT = 2
 
 
 class CheckpointError(RuntimeError):
@@ -37,7 +38,12 @@ def _local_state(sim) -> dict:
         for name, k in s.sinks.items()
     }  # fmt: skip
     averaging = s.averaging.state() if s.averaging is not None else {}
-    return {"particles": dict(s.particles.arrays()), "sinks": sinks, "nonlocal": averaging}
+    owned = s.grid.num_owned_nodes * s.grid.gdim
+    R_changes = np.array(s.R_changes, dtype=np.float64).reshape(-1, owned)
+    return {
+        "particles": dict(s.particles.arrays()), "sinks": sinks, "nonlocal": averaging,
+        "solver": {"R_changes": R_changes},
+    }  # fmt: skip
 
 
 def _write_tree(group: h5py.Group, tree: dict) -> None:
@@ -100,7 +106,8 @@ def read(path, comm) -> dict:
     """The part of the checkpoint for this rank at ``path`` and the run's attributes (collective).
 
     Returns:
-        ``{"attrs": ..., "history": ..., "particles": ..., "sinks": ..., "nonlocal": ...}``.
+        ``{"attrs": ..., "history": ..., "particles": ..., "sinks": ..., "nonlocal": ...,
+        "solver": ...}``.
 
     Raises:
         CheckpointError: missing or unreadable file, or written by another number of ranks.
@@ -155,6 +162,7 @@ def restore(sim, data: dict) -> None:
         sink.history = [(float(t), float(m)) for t, m in rec["history"]]
     if s.averaging is not None:
         s.averaging.restore(data["nonlocal"])
+    s.R_changes = list(np.array(data["solver"]["R_changes"], dtype=np.float64))
     sim.applied.clear()
     for k in attrs["applied"]:
         sim.apply_event(int(k))

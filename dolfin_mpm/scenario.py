@@ -81,6 +81,7 @@ _SOLVER = {  # name: (kind, default, interval or choices)
     "fixed_point_max_iter": ("integer", 50, _Param(1, INF, closed=(True, False))),
     "relaxation": ("number", 1.0, _Param(0.0, 1.0, closed=(False, True))),
     "anderson_depth": ("integer", 5, _Param(0, INF, closed=(True, False))),
+    "extrapolation": ("integer", 2, _Param(0, 2, closed=(True, True))),
 }
 _PARTICLE_FIELDS = ("speed", "p", "q", "mass", "volume")
 

@@ -59,6 +59,9 @@ class Solver:
             ``fixed_point["unconverged"]``), >= 1.
         relaxation: under-relaxation of the ``R`` iterates, in (0, 1].
         anderson_depth: Anderson acceleration depth of the loop, >= 0 (0: plain iteration).
+        extrapolation: order 0, 1 or 2 of the loop's first iterate: ``R`` of the stresses at
+            the start of the step (0, the paper's), plus the change the last step's stress
+            update made to ``R`` (1), or that change extrapolated over the last two steps (2).
 
     """
 
@@ -82,6 +85,7 @@ class Solver:
         fixed_point_max_iter: int = 50,
         relaxation: float = 1.0,
         anderson_depth: int = 5,
+        extrapolation: int = 2,
     ):
         self.grid, self.particles = grid, particles
         self.materials = [materials] if isinstance(materials, Material) else list(materials)
@@ -119,6 +123,11 @@ class Solver:
         if not (isinstance(anderson_depth, (int, np.integer)) and anderson_depth >= 0):
             raise ValueError(f"anderson_depth must be an integer >= 0, got {anderson_depth!r}")
         self.anderson_depth = anderson_depth
+        if not (isinstance(extrapolation, (int, np.integer)) and 0 <= extrapolation <= 2):
+            raise ValueError(f"extrapolation must be 0, 1 or 2, got {extrapolation!r}")
+        self.extrapolation = extrapolation
+        #: The changes of the owned ``R`` over the last steps' fixed-point loops, latest first.
+        self.R_changes: list[np.ndarray] = []
         self.fixed_point_tol, self.fixed_point_max_iter, self.relaxation = (
             fixed_point_tol,
             fixed_point_max_iter,
@@ -306,8 +315,10 @@ class Solver:
         ``de_bar = A de``, evaluates the stresses with the non-local increment -- direction of
         the trial deviator, ``q = max(q_trial - 2 G max(de, de_bar), 0)`` (see
         :mod:`dolfin_mpm.materials.drucker_prager`) -- and from them ``R`` again. The first
-        iterate is the plain explicit step (``R`` of the stresses at the start of the step);
-        the loop ends when ``R`` (and with it ``F_c``; ``F`` is fixed) changes by less than
+        iterate is ``R`` of the stresses at the start of the step (the plain explicit step, as
+        in the paper) plus, with ``extrapolation``, the change of ``R`` that the stress update
+        made in the last step (order 1) or extrapolated over the last two steps (order 2):
+        the loop's fixed point is the same, it starts closer to it. The loop ends when ``R`` (and with it ``F_c``; ``F`` is fixed) changes by less than
         ``fixed_point_tol`` relative to ``max(|R|, |F|)``. The iterates of ``R`` are mixed with
         ``relaxation`` and Anderson acceleration.
         """
@@ -317,7 +328,11 @@ class Solver:
             avg.update(P.x[:, : grid.gdim], P.volume, P.id)
         f_ext = grid.f_ext.x.array[:owned]
         scale_F = math.sqrt(self.comm.allreduce(float(f_ext @ f_ext), MPI.SUM))
-        R_in = grid.f_int.x.array[:owned].copy()
+        R_start = R_in = grid.f_int.x.array[:owned].copy()
+        if self.R_changes and self.extrapolation:
+            R_in = R_start + self._predicted_change()
+            grid.f_int.x.array[:owned] = R_in
+            grid.f_int.x.scatter_forward()
         mixer = Anderson(self.anderson_depth, self.comm)
         for k in range(1, self.fixed_point_max_iter + 1):
             with self._stage("nodal_solve"):
@@ -349,9 +364,16 @@ class Solver:
         stats["steps"] += 1
         stats["iterations"] += k
         stats["max_iterations"] = max(stats["max_iterations"], k)
+        if self.extrapolation:
+            self.R_changes = [R - R_start, *self.R_changes][: self.extrapolation]
         P.sigma, P.volume = sigma, volume
         mat.record(P.state, de, de_bar, dt)
         self._move(v, v_grid, dt)
+
+    def _predicted_change(self) -> np.ndarray:
+        """This step's change of the owned ``R``, extrapolated from the last steps' changes."""
+        dR = self.R_changes[: self.extrapolation]
+        return 2.0 * dR[0] - dR[1] if len(dR) == 2 else dR[0]
 
     @staticmethod
     def _volume_ratio(L: np.ndarray, dt: float) -> np.ndarray:

@@ -32,7 +32,7 @@ def test_zero_radius_is_the_local_model():
 def test_first_iterate_is_the_explicit_step():
     # A radius below the particle spacing averages nothing; one iterate is the local step.
     local = collapse(None, steps=40)
-    one = collapse(dm.NonlocalAverage(1e-4), steps=40, fixed_point_max_iter=1)
+    one = collapse(dm.NonlocalAverage(1e-4), steps=40, fixed_point_max_iter=1, extrapolation=0)
     assert one.fixed_point["unconverged"] == 40
     for name in ("x", "v", "sigma", "volume"):
         a, b = getattr(one.particles, name), getattr(local.particles, name)
@@ -60,10 +60,25 @@ def test_fixed_point_converges_to_the_non_local_law():
     assert dragged.sum() > 10 and np.all(q[dragged] < strength[dragged])
 
 
+def test_extrapolated_first_iterate_reaches_the_same_fixed_point_sooner():
+    runs = {
+        (order, tol): collapse(dm.NonlocalAverage(0.02), steps=80, extrapolation=order, fixed_point_tol=tol)
+        for order in (0, 1, 2)
+        for tol in (1e-3, 1e-8)
+    }
+    its = {key: s.fixed_point["iterations"] for key, s in runs.items()}
+    assert its[2, 1e-3] < its[1, 1e-3] < its[0, 1e-3]
+    for order in (1, 2):  # a tight loop: the same stresses and positions whatever the start
+        for name in ("sigma", "x"):
+            a, b = getattr(runs[order, 1e-8].particles, name), getattr(runs[0, 1e-8].particles, name)
+            assert np.abs(a - b).max() <= 1e-7 * np.abs(b).max()
+
+
 @pytest.mark.parametrize(
     "kwargs, name",
     [({"fixed_point_tol": 0.0}, "fixed_point_tol"), ({"fixed_point_max_iter": 0}, "fixed_point_max_iter"),
-     ({"relaxation": 0.0}, "relaxation"), ({"anderson_depth": -1}, "anderson_depth")],
+     ({"relaxation": 0.0}, "relaxation"), ({"anderson_depth": -1}, "anderson_depth"),
+     ({"extrapolation": 3}, "extrapolation"), ({"extrapolation": 1.5}, "extrapolation")],
 )  # fmt: skip
 def test_bad_loop_settings(kwargs, name):
     with pytest.raises(ValueError, match=rf"^{name} must"):
