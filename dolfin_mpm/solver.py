@@ -318,9 +318,10 @@ class Solver:
         iterate is ``R`` of the stresses at the start of the step (the plain explicit step, as
         in the paper) plus, with ``extrapolation``, the change of ``R`` that the stress update
         made in the last step (order 1) or extrapolated over the last two steps (order 2):
-        the loop's fixed point is the same, it starts closer to it. The loop ends when ``R`` (and with it ``F_c``; ``F`` is fixed) changes by less than
-        ``fixed_point_tol`` relative to ``max(|R|, |F|)``. The iterates of ``R`` are mixed with
-        ``relaxation`` and Anderson acceleration.
+        the loop's fixed point is the same, it starts closer to it. The loop ends when ``R``
+        (and with it ``F_c``; ``F`` is fixed) changes by less than ``fixed_point_tol`` relative
+        to ``max(|R|, |F|)``. The iterates of ``R`` are mixed with ``relaxation`` and Anderson
+        acceleration.
         """
         P, grid, mat, avg = self.particles, self.grid, self.materials[0], self.averaging
         owned = grid.num_owned_nodes * grid.gdim
@@ -371,7 +372,7 @@ class Solver:
         self._move(v, v_grid, dt)
 
     def _predicted_change(self) -> np.ndarray:
-        """This step's change of the owned ``R``, extrapolated from the last steps' changes."""
+        """The change of the owned ``R`` in this step, extrapolated from the last steps' changes."""
         dR = self.R_changes[: self.extrapolation]
         return 2.0 * dR[0] - dR[1] if len(dR) == 2 else dR[0]
 
