@@ -31,7 +31,6 @@ import dolfin_mpm as dm  # import first: it loads DOLFINx's libraries
 
 # isort: split
 import numpy as np
-from dolfinx import mesh
 from mpi4py import MPI
 
 from dolfin_mpm.measure import bin_sums, fwhm, rise_width
@@ -62,7 +61,7 @@ def check_geometry(width: float, height: float, outlet: float, h: float) -> None
 
 
 def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, height=0.3, outlet=0.1, ppc=4,
-          comm=MPI.COMM_WORLD):  # fmt: skip
+          comm=MPI.COMM_WORLD, strips=True):  # fmt: skip
     """The silo on a mesh of ``h`` [m]: solver, sinks and the outlet's gate, before settling.
 
     Args:
@@ -73,6 +72,8 @@ def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, he
         width, height, outlet: silo sizes [m]; the outlet is centred in the bottom.
         ppc: particles per triangle.
         comm: the communicator the mesh is partitioned over.
+        strips: on several ranks, deal the cells to them in vertical strips of equal fill
+            (else DOLFINx partitions them).
 
     Returns:
         ``(solver, gate)``; the gate is a boundary condition in ``solver.bcs``.
@@ -84,12 +85,15 @@ def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, he
     x0, x1 = 0.5 * (width - outlet), 0.5 * (width + outlet)  # outlet edges
     drop = 0.5 * outlet  # free fall below the outlet down to the catch line
     rows_below = math.ceil(drop / h) + 1
+    # On several ranks the cells go to them in vertical strips of equal fill: the flow is
+    # symmetric about the axis, so the ranks keep equal shares of the particles as it empties.
     grid = dm.Grid(
-        mesh.create_rectangle(
+        dm.partition.create_rectangle(
             comm,
-            [np.array([0.0, -rows_below * h]), np.array([width, height + h])],  # a spare row on top
-            [round(width / h), rows_below + round(height / h) + 1],
-            mesh.CellType.triangle,
+            [(0.0, -rows_below * h), (width, height + h)],  # a spare row on top
+            (round(width / h), rows_below + round(height / h) + 1),
+            weight=(lambda x: (x[1] > 0.0) & (x[1] < height)) if strips else None,
+            axes=(0,),
         )
     )
     sand = dm.DruckerPragerViscoplastic(**SAND)

@@ -4,7 +4,7 @@ Import this package before ``dolfinx`` or ``petsc4py``: with the PyPI build of D
 libraries must be loaded first (done in :mod:`dolfin_mpm.compat`).
 """
 
-from dolfin_mpm import compat
+from dolfin_mpm import compat, partition
 from dolfin_mpm.boundary import FixedBC, FrictionalWall, SlipBC, VelocityBC
 from dolfin_mpm.grid import Grid
 from dolfin_mpm.io import Output
@@ -34,5 +34,6 @@ __all__ = [
     "VonMises",
     "compat",
     "geostatic_stress",
+    "partition",
     "seed",
 ]

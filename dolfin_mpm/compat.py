@@ -186,19 +186,30 @@ def read_mesh(comm, path, gdim: int):
     return create_mesh(comm, cells, x)
 
 
-def create_mesh(comm, cells: np.ndarray, x: np.ndarray):
-    """A mesh of affine triangles or tetrahedra, partitioned over ``comm`` by DOLFINx.
+def create_mesh(comm, cells: np.ndarray, x: np.ndarray, destinations=None):
+    """A mesh of affine triangles or tetrahedra, partitioned over ``comm``.
 
     ``cells`` (``(num_cells, gdim + 1)`` vertex numbers) and ``x`` (``(num_vertices, gdim)``)
-    may sit on one rank, the others passing empty arrays of those widths.
+    may sit on one rank, the others passing empty arrays of those widths. DOLFINx partitions
+    the cells, unless ``destinations`` (on the rank holding all cells; ``None`` on the others)
+    gives each cell's ranks, owner first, as ``(data, offsets)`` (see
+    :func:`dolfin_mpm.partition.destinations`).
     """
     gdim = x.shape[1]
     cell_name = _MESHIO_CELLS[gdim][1]
     cells, x = np.asarray(cells, dtype=np.int64), np.ascontiguousarray(x, dtype=np.float64)
+    kwargs = {}
+    if comm.allreduce(destinations is not None):
+        from dolfinx.cpp.graph import AdjacencyList_int32
+
+        data, offsets = destinations if destinations is not None else (np.zeros(0), np.zeros(1))
+        ranks = AdjacencyList_int32(np.asarray(data, np.int32), np.asarray(offsets, np.int32))
+        # The hook's arguments differ between the lines; the answer is the same.
+        kwargs["partitioner"] = lambda *args: ranks
     if _NEW:
         import basix.ufl
 
         element = basix.ufl.element("Lagrange", cell_name, 1, shape=(gdim,))
-        return dmesh.create_mesh(comm, cells, ufl.Mesh(element), x)
+        return dmesh.create_mesh(comm, cells, ufl.Mesh(element), x, **kwargs)
     domain = ufl.Mesh(ufl.VectorElement("Lagrange", cell_name, 1))
-    return dmesh.create_mesh(comm, cells, x, domain)
+    return dmesh.create_mesh(comm, cells, x, domain, **kwargs)

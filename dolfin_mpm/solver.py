@@ -154,6 +154,7 @@ class Solver:
         self.dt = self.critical_dt if dt is None else float(dt)
         self.time = 0.0
         self.step_count = 0
+        self.migrated = 0  #: particles that moved to another rank, all ranks
         self.timings: dict[str, float] = defaultdict(float)
 
     @property
@@ -199,7 +200,9 @@ class Solver:
         cells, N = locate(self.grid, P.x, P.cell)
         if self.comm.size > 1:
             with self._stage("migrate"):
-                if migrate(self.grid, P, cells):
+                sent = migrate(self.grid, P, cells)
+                self.migrated += sent
+                if sent:
                     cells, N = locate(self.grid, P.x, P.cell)
         lost = cells < 0
         if np.any(lost):

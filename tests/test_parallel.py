@@ -1,6 +1,7 @@
 """Particles on DOLFINx's mesh partition; meaningful under ``mpirun -n 2`` (``make test-mpi``),
 and true in serial too."""
 
+import itertools
 from contextlib import nullcontext
 
 import dolfin_mpm as dm
@@ -66,10 +67,10 @@ def test_average_with_halo_equals_the_serial_average(dim, weight, radius):
     assert average(e[mine]) == pytest.approx(expected[mine], rel=1e-12, abs=1e-12)
 
 
-def silo_run(comm, steps=200):
+def silo_run(comm, steps=200, strips=True):
     """Global measures of a short, coarse non-local silo discharge on ``comm``."""
     silo = load("demo_silo")
-    solver, gate = silo.build(h=0.025, radius=0.025, comm=comm)
+    solver, gate = silo.build(h=0.025, radius=0.025, comm=comm, strips=strips)
     solver.bcs = [bc for bc in solver.bcs if bc is not gate]  # open at once: particles cross ranks
     for _ in range(steps):
         solver.step()
@@ -80,16 +81,32 @@ def silo_run(comm, steps=200):
         "kinetic": solver.energies()["kinetic"],
         "e_vp_bar_max": comm.allreduce(float(e_bar.max(initial=0.0)), MPI.MAX),
         "iterations": solver.fixed_point["iterations"],
+        "migrated": solver.migrated,
     }
 
 
-def test_silo_on_all_ranks_equals_the_serial_run():
-    parallel, serial = silo_run(comm), silo_run(MPI.COMM_SELF)
+@pytest.mark.parametrize("strips", [True, False])
+def test_silo_on_all_ranks_equals_the_serial_run(strips):
+    """Strips of equal fill; DOLFINx's partition, across which the particles fall."""
+    parallel, serial = silo_run(comm, strips=strips), silo_run(MPI.COMM_SELF)
     assert parallel["discharged"] > 0.0
+    assert comm.size == 1 or strips or parallel["migrated"] > 0
     assert parallel["particles"] == serial["particles"]
     assert parallel["iterations"] == serial["iterations"]
     for key in ("discharged", "kinetic", "e_vp_bar_max"):
         assert parallel[key] == pytest.approx(serial[key], rel=1e-8), key
+
+
+def test_strips_of_equal_fill_balance_the_silo():
+    solver, _ = load("demo_silo").build(h=0.01, comm=comm)
+    counts = comm.allgather(len(solver.particles))
+    assert sum(counts) == 4800
+    assert max(counts) - min(counts) <= 240  # whole columns: 30 cells, 2 triangles, 4 particles
+    grid = solver.grid  # each rank owns one strip, with ghosts on its sides
+    x = grid.node_x[grid.cell_dofs[: grid.num_owned_cells], 0].mean(axis=1)
+    strips = comm.allgather((x.min(), x.max()))
+    assert all(a[1] < b[0] for a, b in itertools.pairwise(strips))
+    assert comm.size == 1 or grid.num_cells > grid.num_owned_cells
 
 
 def falling_block(comm, steps=60, output=None):
