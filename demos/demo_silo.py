@@ -19,6 +19,9 @@ map time), so studies are resumed rather than repeated:
     python demos/demo_silo.py --study radius       # r = 0, 2.5, 5, 10 mm on one mesh
     python demos/demo_silo.py --study weights      # cubic, constant, Gaussian at r = 5 mm
     python demos/demo_silo.py --study all --report docs/silo.md
+
+Runs and studies also run on several MPI ranks (``mpirun -n 2 python demos/demo_silo.py
+--h 0.0025``); the cells go to the ranks in vertical strips of equal fill.
 """
 
 import argparse
@@ -158,20 +161,21 @@ class Monitor:
             e_bar = P.state["eps_vp_rate_nonlocal"]
             self.sums += bin_sums(P.x[strip, 0], self.edges, e_bar[strip], P.v[strip, 1])
 
-    def profiles(self):
+    def profiles(self, comm):
         """Bin centres [m] and the time-averaged e_vp_bar [1/s] and v_y [m/s] in each bin."""
-        count, e, v = self.sums
+        count, e, v = comm.allreduce(self.sums, MPI.SUM)
         seen = count > 0  # bins no particle visited are left out
         x = 0.5 * (self.edges[1:] + self.edges[:-1])
         return x[seen], e[seen] / count[seen], v[seen] / count[seen]
 
 
 def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, height=0.3, outlet=0.1,
-        ppc=4, t_end=0.25, t_settle=0.02, output=None, interval=0.005, progress=True):  # fmt: skip
+        ppc=4, t_end=0.25, t_settle=0.02, output=None, interval=0.005, progress=True,
+        comm=MPI.COMM_WORLD):  # fmt: skip
     """Settle the fill, open the outlet at t = 0 and discharge until ``t_end`` [s].
 
     Args:
-        h, radius, weight, wall_friction, width, height, outlet, ppc: as for :func:`build`.
+        h, radius, weight, wall_friction, width, height, outlet, ppc, comm: as for :func:`build`.
         t_end: end of the discharge [s].
         t_settle: length of the damped settling phase before the opening [s].
         output: folder for the XDMF series (particles and grid), or ``None``.
@@ -183,14 +187,12 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, heig
         the height ``y_c`` over the last fifth of the run, and the run's statistics.
 
     """
-    if MPI.COMM_WORLD.size > 1:
-        raise RuntimeError("this demo records and stores particles on one rank; run it serially")
     for name, value in (("t_end", t_end), ("interval", interval)):
         if not value > 0.0:
             raise ValueError(f"{name} must be > 0 s, got {value!r}")
     if not t_settle >= 0.0:
         raise ValueError(f"t_settle must be >= 0 s, got {t_settle!r}")
-    solver, gate = build(h, radius, weight, wall_friction, width, height, outlet, ppc)
+    solver, gate = build(h, radius, weight, wall_friction, width, height, outlet, ppc, comm)
     m0 = solver.total_mass()
     t0 = time.perf_counter()
     # ## Settling on the closed outlet (damped), then the opening
@@ -212,10 +214,12 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, heig
         if xdmf is not None:
             xdmf.close()
     elapsed = time.perf_counter() - t0
-    P = solver.particles
+    P, comm = solver.particles, solver.comm
     t, mass = np.array(monitor.t), np.array(monitor.mass)
-    x_c, e_c, v_c = monitor.profiles()
+    x_c, e_c, v_c = monitor.profiles(comm)
     fp = solver.fixed_point
+    e_vp_bar = P.state["eps_vp_rate_nonlocal"]
+    gather = lambda a: np.concatenate(comm.allgather(a))  # noqa: E731  (all ranks' particles)
     return {
         "h": h,
         "radius": radius,
@@ -225,18 +229,19 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, heig
         "discharged": mass,
         "flow_rate": flow_rate(t, mass),
         "mass_initial": m0,
-        "mass_final": solver.total_mass() + solver.sinks["discharged"].mass,
+        "mass_final": solver.total_mass() + comm.allreduce(solver.sinks["discharged"].mass),
         "kinetic_at_opening": kinetic_at_opening,
         "profile_x": x_c,
         "profile_e_vp_bar": e_c,
         "profile_v_y": v_c,
         "y_c": y_c,
-        "x": P.x[:, :2].copy(),  # the particles at t_end
-        "e_vp_bar": P.state["eps_vp_rate_nonlocal"].copy(),
-        "e_vp_bar_max": float(P.state["eps_vp_rate_nonlocal"][P.x[:, 1] > 0.0].max()),
+        "x": gather(P.x[:, :2]),  # the particles at t_end
+        "e_vp_bar": gather(e_vp_bar),
+        "e_vp_bar_max": comm.allreduce(float(e_vp_bar[P.x[:, 1] > 0.0].max(initial=0.0)), MPI.MAX),
         "particles": solver.num_particles(),
         "steps": solver.step_count,
         "seconds": elapsed,
+        "ranks": comm.size,
         "mean_iterations": fp["iterations"] / fp["steps"] if fp["steps"] else 1.0,
         "max_iterations": fp["max_iterations"],
         "unconverged": fp["unconverged"],
@@ -301,22 +306,30 @@ def run_key(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0) -> str:
     return f"h{1e3 * h:g}mm_r{1e3 * radius:g}mm_{weight}_wall{wall_friction:g}"
 
 
+def stored_run(folder: Path, **params) -> dict:
+    """The stored result of the run with ``params`` in ``folder/runs``."""
+    runs, key = Path(folder) / "runs", run_key(**params)
+    result = json.loads((runs / f"{key}.json").read_text())
+    with np.load(runs / f"{key}.npz") as arrays:
+        result.update({name: arrays[name] for name in ARRAYS})
+    return result
+
+
 def cached_run(folder: Path, xdmf=False, progress=True, **params) -> dict:
     """The result of :func:`run` with ``params``, from ``folder/runs`` or computed and stored there.
 
-    The numbers go to ``<key>.json``, the arrays to ``<key>.npz``, each written under a
-    temporary name and then renamed, so an interrupted study never leaves half a result.
+    The numbers go to ``<key>.json``, the arrays to ``<key>.npz``, each written (by rank 0)
+    under a temporary name and then renamed, so an interrupted study never leaves half a result.
     """
     runs = Path(folder) / "runs"
     key = run_key(**params)
     path = runs / f"{key}.json"
-    if path.exists():
-        result = json.loads(path.read_text())
-        with np.load(runs / f"{key}.npz") as arrays:
-            result.update({name: arrays[name] for name in ARRAYS})
-        return result
+    if MPI.COMM_WORLD.bcast(path.exists(), root=0):
+        return stored_run(folder, **params)
     runs.mkdir(parents=True, exist_ok=True)
     result = run(**params, output=runs / key if xdmf else None, progress=progress)
+    if MPI.COMM_WORLD.rank > 0:
+        return result
     tmp = runs / f"{key}.tmp.npz"
     np.savez_compressed(tmp, **{name: result[name] for name in ARRAYS})
     tmp.rename(runs / f"{key}.npz")
@@ -405,6 +418,12 @@ def plot_profiles(results, path: Path) -> None:
         axes[1].legend(fontsize=7)
 
 
+def ranks(r) -> str:
+    """`` on N ranks`` for a run on N > 1 MPI ranks, else nothing."""
+    n = r.get("ranks", 1)
+    return f" on {n} ranks" if n > 1 else ""
+
+
 def _spread(values) -> str:
     return f"{100 * (max(values) / min(values) - 1):.0f} %"
 
@@ -417,7 +436,7 @@ def report(folder: Path, path: Path) -> str:
     images = path.parent / "images"
     images.mkdir(parents=True, exist_ok=True)
     have = lambda p: (Path(folder) / "runs" / f"{run_key(**p)}.json").exists()  # noqa: E731
-    studies = {name: [cached_run(folder, **p) for p in todo if have(p)] for name, todo in STUDIES.items()}
+    studies = {name: [stored_run(folder, **p) for p in todo if have(p)] for name, todo in STUDIES.items()}
     missing = {name: [run_key(**p) for p in todo if not have(p)] for name, todo in STUDIES.items()}
     lo, hi = beverloo()
     out = [
@@ -451,7 +470,7 @@ def report(folder: Path, path: Path) -> str:
             f"| {r['flow_rate']:.1f} | {r['e_vp_bar_max']:.1f} "
             f"| {1e3 * w['band']:.1f} | {1e3 * w['edge']:.1f} at {1e3 * w['edge_x']:.0f} "
             f"| {1e3 * w['channel']:.1f} "
-            f"| {r['particles']} | {r['steps']} | {r['mean_iterations']:.2f} | {r['seconds']:.0f} |"
+            f"| {r['particles']} | {r['steps']} | {r['mean_iterations']:.2f} | {r['seconds']:.0f}{ranks(r)} |"
         )
 
     header = [
@@ -522,17 +541,19 @@ def main():
     lo, hi = beverloo()
     for params in todo:
         r = cached_run(args.output, xdmf=True, **params)
+        if MPI.COMM_WORLD.rank > 0:
+            continue
+        key = run_key(**params)
         if args.study is None:
-            key = run_key(**params)
             plot_maps([r], args.output / f"{key}_map.png")
             plot_discharge([r], args.output / f"{key}_discharge.png")
             print(f"wrote {args.output}/{key}_map.png, {key}_discharge.png and runs/{key}/*.xdmf")
         print(
-            f"{run_key(**params)}: flow rate {r['flow_rate']:.1f} kg/s/m (Beverloo {lo:.0f}-{hi:.0f}), "
+            f"{key}: flow rate {r['flow_rate']:.1f} kg/s/m (Beverloo {lo:.0f}-{hi:.0f}), "
             f"max e_vp_bar {r['e_vp_bar_max']:.1f} 1/s, {r['particles']} particles, {r['steps']} steps, "
-            f"{r['seconds']:.0f} s, {r['mean_iterations']:.2f} iterations per step"
+            f"{r['seconds']:.0f} s{ranks(r)}, {r['mean_iterations']:.2f} iterations per step"
         )
-    if args.report is not None:
+    if args.report is not None and MPI.COMM_WORLD.rank == 0:
         report(args.output, args.report)
         print(f"wrote {args.report}")
 

@@ -97,6 +97,21 @@ def test_silo_on_all_ranks_equals_the_serial_run(strips):
         assert parallel[key] == pytest.approx(serial[key], rel=1e-8), key
 
 
+def test_silo_demo_on_all_ranks_records_what_the_serial_run_does(tmp_path):
+    run = load("demo_silo").run
+    quick = dict(h=0.025, radius=0.02, t_end=0.05, t_settle=0.005, progress=False)
+    output = comm.bcast(tmp_path, root=0)
+    parallel, serial = run(**quick, output=output, comm=comm), run(**quick, comm=MPI.COMM_SELF)
+    assert parallel["ranks"] == comm.size and parallel["particles"] == serial["particles"]
+    assert abs(parallel["mass_final"] - parallel["mass_initial"]) < 1e-12 * parallel["mass_initial"]
+    assert parallel["discharged"][-1] > 0.0
+    for key in ("discharged", "profile_e_vp_bar", "profile_v_y", "e_vp_bar_max"):
+        assert parallel[key] == pytest.approx(serial[key], rel=1e-8), key
+    order = [np.lexsort(r["x"].T) for r in (parallel, serial)]  # all ranks' particles, any order
+    assert parallel["x"][order[0]] == pytest.approx(serial["x"][order[1]], rel=1e-8)
+    assert (output / "particles.xdmf").exists()
+
+
 def test_strips_of_equal_fill_balance_the_silo():
     solver, _ = load("demo_silo").build(h=0.01, comm=comm)
     counts = comm.allgather(len(solver.particles))
