@@ -131,12 +131,14 @@ class Halo:
     def __init__(self, comm, x: np.ndarray, margin: float):
         self.comm = comm
         gdim = x.shape[1]
+        # Column by column: numpy is slow over the short rows of an (n, gdim) array.
+        columns = [x[:, c] for c in range(gdim)]
         lo, hi = np.full(gdim, np.inf), np.full(gdim, -np.inf)
-        comm.Allreduce(x.min(axis=0, initial=np.inf), lo, MPI.MIN)
-        comm.Allreduce(x.max(axis=0, initial=-np.inf), hi, MPI.MAX)
+        comm.Allreduce(np.array([c.min(initial=np.inf) for c in columns]), lo, MPI.MIN)
+        comm.Allreduce(np.array([c.max(initial=-np.inf) for c in columns]), hi, MPI.MAX)
         shape = np.floor((hi - lo) / margin).astype(np.int64) + 3  # one spare cube each side
-        cube = np.floor((x - lo) / margin).astype(np.int64) + 1
-        key = np.ravel_multi_index(tuple(cube.T), shape)
+        cube = tuple(np.floor((c - a) / margin).astype(np.int64) + 1 for c, a in zip(columns, lo))
+        key = np.ravel_multi_index(cube, shape)
         # Sets of cubes as flags over all cubes (linear time) where there are at most 8 cubes
         # per particle, sorted keys otherwise (a sparse cloud).
         num_cubes = int(np.prod(shape))

@@ -221,7 +221,7 @@ class Solver:
         """Lumped mass, momentum, external force ``F`` and internal force ``R`` at the nodes."""
         P, grid = self.particles, self.grid
         m = grid.assemble(grid.mass, scatter(basis, P.mass))
-        grid.assemble(grid.momentum, scatter(basis, P.mass[:, None] * P.v))
+        grid.assemble(grid.momentum, scatter(basis, self._momenta(P.v)))
         grid.f_ext.x.array[:] = (m[:, None] * self.gravity).ravel()  # from the assembled mass
         grid.assemble(grid.f_int, internal_force(basis, P.sigma, P.volume))
         self._inv_m = self._inverse_mass()
@@ -284,7 +284,7 @@ class Solver:
             v = v_interp
         if self.scheme == "MUSL":
             # Re-mapped momentum goes into `velocity`: `momentum` keeps the step's start.
-            p = grid.assemble(grid.velocity, scatter(basis, P.mass[:, None] * v))
+            p = grid.assemble(grid.velocity, scatter(basis, self._momenta(v)))
             v_grid = p * self._inv_m[:, None]
             self._apply_bcs(v_grid)
             grid.velocity.x.array[:] = v_grid.ravel()
@@ -294,7 +294,15 @@ class Solver:
         """Commit the particle velocities ``v`` and move the particles with ``v_grid``."""
         P = self.particles
         P.v = v
-        P.x[:, : self.grid.gdim] += dt * v_grid
+        for c in range(self.grid.gdim):  # by columns: numpy is slow over short rows
+            P.x[:, c] += dt * v_grid[:, c]
+
+    def _momenta(self, v: np.ndarray) -> np.ndarray:
+        """The particles' momenta ``m_p v_p`` for velocities ``v``, ``shape=(n, gdim)``."""
+        m, out = self.particles.mass, np.empty_like(v)
+        for c in range(v.shape[1]):  # by columns: numpy is slow over short rows
+            np.multiply(m, v[:, c], out=out[:, c])
+        return out
 
     def _update_stress(self, L: np.ndarray, dt: float) -> None:
         """Stress and state from each material; volume from ``det(I + dt L)``."""
