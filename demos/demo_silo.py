@@ -89,7 +89,8 @@ def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, he
     drop = 0.5 * outlet  # free fall below the outlet down to the catch line
     rows_below = math.ceil(drop / h) + 1
     # On several ranks the cells go to them in vertical strips of equal fill: the flow is
-    # symmetric about the axis, so the ranks keep equal shares of the particles as it empties.
+    # symmetric about the axis, so on two ranks the halves keep equal shares as it empties
+    # (on more, the inner strips empty faster).
     grid = dm.Grid(
         dm.partition.create_rectangle(
             comm,
@@ -183,7 +184,8 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, heig
 
     Returns:
         dict: the discharged mass against time, the flow rate, the particles at ``t_end``
-        (positions, non-local rate e_vp_bar), the time-averaged profiles across the silo at
+        (positions and non-local rate e_vp_bar, of all ranks on every rank), the
+        time-averaged profiles across the silo at
         the height ``y_c`` over the last fifth of the run, and the run's statistics.
 
     """
@@ -372,7 +374,9 @@ def plot_maps(results, path: Path, width=0.2, outlet=0.1) -> None:
             ax.set_ylim(-5, 30.5)
         axes[0].set_ylabel("y [cm]")
         fig.colorbar(sc, ax=axes.tolist(), shrink=0.8, label="e_vp_bar [1/s]")
-        fig.suptitle(f"non-local equivalent viscoplastic strain rate at t = {results[0]['t'][-1]:.2f} s")
+        # The full name needs the width of several panels.
+        what = "non-local equivalent viscoplastic strain rate" if len(results) > 1 else "e_vp_bar"
+        fig.suptitle(f"{what} at t = {results[0]['t'][-1]:.2f} s")
 
 
 def plot_discharge(results, path: Path, outlet=0.1) -> None:

@@ -39,7 +39,7 @@ def _local_state(sim) -> dict:
     }  # fmt: skip
     averaging = s.averaging.state() if s.averaging is not None else {}
     owned = s.grid.num_owned_nodes * s.grid.gdim
-    R_changes = np.array(s.R_changes, dtype=np.float64).reshape(-1, owned)
+    R_changes = np.array(s.R_changes, dtype=np.float64).reshape(len(s.R_changes), owned)
     return {
         "particles": dict(s.particles.arrays()), "sinks": sinks, "nonlocal": averaging,
         "solver": {"R_changes": R_changes},
@@ -140,7 +140,7 @@ def restore(sim, data: dict) -> None:
     """Put the checkpoint ``data`` (from :func:`read`) into a freshly built ``sim``.
 
     Raises:
-        CheckpointError: the checkpoint does not fit the scenario (other fields or sinks).
+        CheckpointError: the checkpoint does not fit the scenario (other fields, sinks or grid).
 
     """
     s, attrs = sim.solver, data["attrs"]
@@ -152,6 +152,9 @@ def restore(sim, data: dict) -> None:
         or set(data["sinks"]) != set(s.sinks)
     ):
         raise CheckpointError("the checkpoint does not fit the scenario (particle fields or sinks differ)")
+    R_changes = np.array(data["solver"]["R_changes"], dtype=np.float64)
+    if R_changes.shape[1:] != (s.grid.num_owned_nodes * s.grid.gdim,):
+        raise CheckpointError("the checkpoint does not fit the scenario (the grid's nodes differ)")
     for name, a in arrays.items():
         setattr(P, name, np.ascontiguousarray(a))
     P.state = {name: np.ascontiguousarray(a) for name, a in state.items()}
@@ -162,7 +165,7 @@ def restore(sim, data: dict) -> None:
         sink.history = [(float(t), float(m)) for t, m in rec["history"]]
     if s.averaging is not None:
         s.averaging.restore(data["nonlocal"])
-    s.R_changes = list(np.array(data["solver"]["R_changes"], dtype=np.float64))
+    s.R_changes = list(R_changes)
     sim.applied.clear()
     for k in attrs["applied"]:
         sim.apply_event(int(k))

@@ -25,12 +25,12 @@ def bisection(points: np.ndarray, weight: np.ndarray, nparts: int, axes=None) ->
     """The part of each point, ``0 <= part < nparts``, the parts of nearly equal total weight.
 
     Recursive coordinate bisection: a set of points meant for ``k`` parts is cut across one
-    axis where ``k // 2`` parts' share of its weight lies below the cut. Points with the same
-    coordinate stay on the same side (cuts follow the grid lines of a structured mesh).
+    axis where ``k // 2`` parts' share of its weight lies below the cut (of its count, where
+    the set weighs nothing). Points with the same coordinate stay on the same side.
 
     Args:
         points: ``shape=(n, gdim)``.
-        weight: ``shape=(n,)``, >= 0; all zero counts every point once.
+        weight: ``shape=(n,)``, >= 0.
         nparts: number of parts, >= 1.
         axes: the axis of the cut at each level of the recursion, cycled; default: the
             longest extent of the set being cut.
@@ -39,8 +39,6 @@ def bisection(points: np.ndarray, weight: np.ndarray, nparts: int, axes=None) ->
     weight = np.asarray(weight, dtype=np.float64)
     if np.any(weight < 0.0) or not np.all(np.isfinite(weight)):
         raise ValueError("weight must be finite and >= 0")
-    if weight.sum() == 0.0:
-        weight = np.ones_like(weight)
     part = np.zeros(len(points), dtype=np.int32)
     todo = [(np.arange(len(points)), 0, nparts, 0)]  # (points, first part, parts, level)
     while todo:
@@ -51,7 +49,8 @@ def bisection(points: np.ndarray, weight: np.ndarray, nparts: int, axes=None) ->
         p = points[index]
         axis = np.argmax(np.ptp(p, axis=0)) if axes is None else axes[level % len(axes)]
         order = np.argsort(p[:, axis], kind="stable")
-        coord, below = p[order, axis], np.cumsum(weight[index][order])
+        w = weight[index][order]
+        coord, below = p[order, axis], np.cumsum(w if w.sum() > 0.0 else np.ones_like(w))
         target = below[-1] * (k // 2) / k
         # The cut between two distinct coordinates closest to the target share.
         ends = np.flatnonzero(np.r_[coord[1:] != coord[:-1], True])  # last point of each coordinate
@@ -90,18 +89,32 @@ def create_rectangle(comm, corners, n, weight: Callable | None = None, axes=None
     """DOLFINx's rectangle of ``n = (nx, ny)`` squares of two triangles between ``corners``.
 
     Without ``weight`` (or on one rank) it is ``dolfinx.mesh.create_rectangle``. With it, the
-    cells go to the ranks by :func:`bisection` of ``weight(midpoints)`` (``shape=(3, m)`` ->
-    ``(m,)``, e.g. the particles a cell will hold) along ``axes``; the mesh is the same.
+    same mesh's cells go to the ranks by :func:`bisection` of ``weight(centroids)``
+    (``shape=(3, m)`` -> ``(m,)``, e.g. the particles a cell will hold; called on rank 0 only)
+    along ``axes``.
+
+    Raises:
+        ValueError: on every rank, for a bad weight or a rank left without cells.
+
     """
     corners = [np.asarray(c, dtype=np.float64) for c in corners]
     if weight is None or comm.size == 1:
         return dmesh.create_rectangle(comm, corners, list(n), dmesh.CellType.triangle)
-    cells, x, dest = np.zeros((0, 3), np.int64), np.zeros((0, 2)), None
+    cells, x, dest, error = np.zeros((0, 3), np.int64), np.zeros((0, 2)), None, None
     if comm.rank == 0:
         serial = dmesh.create_rectangle(MPI.COMM_SELF, corners, list(n), dmesh.CellType.triangle)
         cells, x = compat.geometry_dofmap(serial).astype(np.int64), serial.geometry.x[:, :2].copy()
-        midpoints = np.zeros((3, len(cells)))
-        midpoints[:2] = x[cells].mean(axis=1).T
-        part = bisection(midpoints[:2].T, np.asarray(weight(midpoints), dtype=np.float64), comm.size, axes)
-        dest = destinations(cells, part)
+        centroids = np.zeros((3, len(cells)))
+        centroids[:2] = x[cells].mean(axis=1).T
+        try:
+            w = np.asarray(weight(centroids), dtype=np.float64)
+            part = bisection(centroids[:2].T, w, comm.size, axes)
+            if np.bincount(part, minlength=comm.size).min() == 0:
+                raise ValueError(f"axes={axes}: {comm.size} ranks cannot all get cells of a {n} rectangle")
+            dest = destinations(cells, part)
+        except ValueError as e:
+            error = str(e)
+    error = comm.bcast(error, root=0)
+    if error:
+        raise ValueError(error)
     return compat.create_mesh(comm, cells, x, dest)

@@ -154,7 +154,7 @@ class Solver:
         self.dt = self.critical_dt if dt is None else float(dt)
         self.time = 0.0
         self.step_count = 0
-        self.migrated = 0  #: particles that moved to another rank, all ranks
+        self.migrated = 0  #: particles moved between ranks since construction (not checkpointed)
         self.timings: dict[str, float] = defaultdict(float)
 
     @property
@@ -362,7 +362,7 @@ class Solver:
                 volume = P.volume * self._volume_ratio(L, dt)
             with self._stage("p2g"):
                 R = grid.assemble(grid.f_int, internal_force(basis, sigma, volume))
-                R = R.ravel()[:owned]
+                R = R.ravel()[:owned].copy()  # f_int takes the next iterate below
                 norms = self.comm.allreduce(np.array([(R - R_in) @ (R - R_in), R @ R]), MPI.SUM)
                 if math.sqrt(norms[0]) <= self.fixed_point_tol * max(math.sqrt(norms[1]), scale_F, 1e-300):
                     break

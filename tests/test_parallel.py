@@ -12,6 +12,7 @@ import pytest
 from conftest import rectangle
 from dolfinx import mesh
 from mpi4py import MPI
+from scipy.spatial import cKDTree
 from test_demos import load
 
 from dolfin_mpm.locate import locate
@@ -90,7 +91,10 @@ def test_silo_on_all_ranks_equals_the_serial_run(strips):
     """Strips of equal fill; DOLFINx's partition, across which the particles fall."""
     parallel, serial = silo_run(comm, strips=strips), silo_run(MPI.COMM_SELF)
     assert parallel["discharged"] > 0.0
-    assert comm.size == 1 or strips or parallel["migrated"] > 0
+    if strips:  # the flow is symmetric: (almost) no particle crosses the axis
+        assert parallel["migrated"] < 0.01 * parallel["particles"]
+    else:
+        assert comm.size == 1 or parallel["migrated"] > 0
     assert parallel["particles"] == serial["particles"]
     assert parallel["iterations"] == serial["iterations"]
     for key in ("discharged", "kinetic", "e_vp_bar_max"):
@@ -107,16 +111,24 @@ def test_silo_demo_on_all_ranks_records_what_the_serial_run_does(tmp_path):
     assert parallel["discharged"][-1] > 0.0
     for key in ("discharged", "profile_e_vp_bar", "profile_v_y", "e_vp_bar_max"):
         assert parallel[key] == pytest.approx(serial[key], rel=1e-8), key
-    order = [np.lexsort(r["x"].T) for r in (parallel, serial)]  # all ranks' particles, any order
-    assert parallel["x"][order[0]] == pytest.approx(serial["x"][order[1]], rel=1e-8)
+    # All ranks' particles, in any order (ids follow the partition): each at a serial one's place.
+    distance, match = cKDTree(serial["x"]).query(parallel["x"])
+    assert np.unique(match).size == len(match) and distance.max() < 1e-9
     assert (output / "particles.xdmf").exists()
+
+
+def test_bad_partition_weight_fails_on_every_rank():
+    if comm.size == 1:
+        pytest.skip("one rank takes every cell without weighing them")
+    with pytest.raises(ValueError, match="weight must be finite and >= 0"):
+        dm.partition.create_rectangle(comm, [(0, 0), (1, 1)], (4, 4), weight=lambda x: -x[0])
 
 
 def test_strips_of_equal_fill_balance_the_silo():
     solver, _ = load("demo_silo").build(h=0.01, comm=comm)
     counts = comm.allgather(len(solver.particles))
     assert sum(counts) == 4800
-    assert max(counts) - min(counts) <= 240  # whole columns: 30 cells, 2 triangles, 4 particles
+    assert max(counts) - min(counts) <= 240  # a column: 30 squares, 2 triangles, 4 particles
     grid = solver.grid  # each rank owns one strip, with ghosts on its sides
     x = grid.node_x[grid.cell_dofs[: grid.num_owned_cells], 0].mean(axis=1)
     strips = comm.allgather((x.min(), x.max()))
