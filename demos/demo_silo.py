@@ -308,9 +308,11 @@ def run_key(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0) -> str:
     return f"h{1e3 * h:g}mm_r{1e3 * radius:g}mm_{weight}_wall{wall_friction:g}"
 
 
-def stored_run(folder: Path, **params) -> dict:
-    """The stored result of the run with ``params`` in ``folder/runs``."""
+def stored_run(folder: Path, **params) -> dict | None:
+    """The stored result of the run with ``params`` in ``folder/runs``, ``None`` if there is none."""
     runs, key = Path(folder) / "runs", run_key(**params)
+    if not (runs / f"{key}.json").exists():
+        return None
     result = json.loads((runs / f"{key}.json").read_text())
     with np.load(runs / f"{key}.npz") as arrays:
         result.update({name: arrays[name] for name in ARRAYS})
@@ -323,11 +325,10 @@ def cached_run(folder: Path, xdmf=False, progress=True, **params) -> dict:
     The numbers go to ``<key>.json``, the arrays to ``<key>.npz``, each written (by rank 0)
     under a temporary name and then renamed, so an interrupted study never leaves half a result.
     """
-    runs = Path(folder) / "runs"
-    key = run_key(**params)
-    path = runs / f"{key}.json"
-    if MPI.COMM_WORLD.bcast(path.exists(), root=0):
-        return stored_run(folder, **params)
+    stored = stored_run(folder, **params)
+    if MPI.COMM_WORLD.bcast(stored is not None, root=0):
+        return stored
+    runs, key = Path(folder) / "runs", run_key(**params)
     runs.mkdir(parents=True, exist_ok=True)
     result = run(**params, output=runs / key if xdmf else None, progress=progress)
     if MPI.COMM_WORLD.rank > 0:
@@ -337,7 +338,7 @@ def cached_run(folder: Path, xdmf=False, progress=True, **params) -> dict:
     tmp.rename(runs / f"{key}.npz")
     tmp = runs / f"{key}.json.tmp"
     tmp.write_text(json.dumps({k: v for k, v in result.items() if k not in ARRAYS}, indent=1))
-    tmp.rename(path)
+    tmp.rename(runs / f"{key}.json")
     return result
 
 
@@ -439,9 +440,9 @@ def report(folder: Path, path: Path) -> str:
     """
     images = path.parent / "images"
     images.mkdir(parents=True, exist_ok=True)
-    have = lambda p: (Path(folder) / "runs" / f"{run_key(**p)}.json").exists()  # noqa: E731
-    studies = {name: [stored_run(folder, **p) for p in todo if have(p)] for name, todo in STUDIES.items()}
-    missing = {name: [run_key(**p) for p in todo if not have(p)] for name, todo in STUDIES.items()}
+    stored = {name: {run_key(**p): stored_run(folder, **p) for p in todo} for name, todo in STUDIES.items()}
+    studies = {name: [r for r in runs.values() if r is not None] for name, runs in stored.items()}
+    missing = {name: [key for key, r in runs.items() if r is None] for name, runs in stored.items()}
     lo, hi = beverloo()
     out = [
         "# Silo discharge",

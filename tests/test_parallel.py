@@ -1,6 +1,7 @@
 """Particles on DOLFINx's mesh partition; meaningful under ``mpirun -n 2`` (``make test-mpi``),
 and true in serial too."""
 
+import functools
 import itertools
 from contextlib import nullcontext
 
@@ -86,10 +87,15 @@ def silo_run(comm, steps=200, strips=True):
     }
 
 
+@functools.cache
+def serial_silo_run():
+    return silo_run(MPI.COMM_SELF)
+
+
 @pytest.mark.parametrize("strips", [True, False])
 def test_silo_on_all_ranks_equals_the_serial_run(strips):
     """Strips of equal fill; DOLFINx's partition, across which the particles fall."""
-    parallel, serial = silo_run(comm, strips=strips), silo_run(MPI.COMM_SELF)
+    parallel, serial = silo_run(comm, strips=strips), serial_silo_run()
     assert parallel["discharged"] > 0.0
     if strips:  # the flow is symmetric: (almost) no particle crosses the axis
         assert parallel["migrated"] < 0.01 * parallel["particles"]
