@@ -3,25 +3,26 @@
     avg(e)_i = sum_j w(s_ij) e_j V_j / sum_j w(s_ij) V_j,   s_ij = |x_i - x_j| / r,
 
 over all particles within the radius ``r`` (a circle in 2D, a sphere in 3D), self included.
-Neighbour pairs come from scipy's KD-tree for the radius plus a skin and are kept while no
-particle has moved more than half the skin since they were found (the Verlet-list idea of
-molecular dynamics); weights are recomputed on the kept pairs every step, in double precision
-from the current positions. The set of particles may change between steps without a rebuild:
-a removed particle (a sink, or one that moved to another rank) keeps a dead slot until the
-next rebuild, and a particle that arrives (from another rank, or into the halo of another
-rank's particles) gets a slot and its pairs from a search around it alone. Once particles have
-arrived the rebuild comes at a third of the skin: pairs found at different times stay
-complete for that long.
+Neighbour pairs are found for the radius plus a skin, by sorting the particles into cubes of
+that side, and kept while no particle has moved more than half the skin since they were found
+(the Verlet list of molecular dynamics); weights are recomputed on the kept pairs every step,
+in double precision from the current positions. The set of particles may change between steps
+without a rebuild: a removed particle (a sink, or one that moved to another rank) keeps a dead
+slot until the next rebuild, and a particle that arrives (from another rank, or into the halo
+of another rank's particles) gets a slot and its pairs from a search around it alone (scipy's
+KD-tree). Once particles have arrived the rebuild comes at a third of the skin: pairs found
+at different times stay complete for that long.
 
 The loops over the pairs (~10^7 for 10^5 particles at r = 2h) are compiled C
 (``nonlocal_average.c``): the weights and the symmetric product, each one pass a step where
-numpy would stream every intermediate through memory, and the sort of a rebuild's pairs. They
+numpy would stream every intermediate through memory, and the search of a rebuild. They
 are bound by memory bandwidth, so the pairs are stored in runs of equal first index (its
 value once per run) and the weight pass hands the products only the pairs closer than r
 (about two thirds of those within r + skin).
 """
 
 import ctypes
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -44,7 +45,10 @@ _SIGNATURES = {
         _OFFSET, _INDEX, _OFFSET, _INDEX, _REAL,
     ),
     "pair_apply": (ctypes.c_int64, ctypes.c_int64, _INDEX, _OFFSET, _INDEX, _REAL, _REAL, _REAL),
-    "pair_sort": (ctypes.c_int64, ctypes.c_int64, _INDEX, _INDEX, _INDEX, _INDEX, _OFFSET),
+    "pair_search": (
+        ctypes.c_int64, ctypes.c_int32, _REAL, ctypes.c_double, _REAL, ctypes.c_double, _OFFSET,
+        ctypes.c_int64, _INDEX, _OFFSET, _INDEX, _OFFSET, _INDEX, _OFFSET, _OFFSET,
+    ),
 }  # fmt: skip
 _kernels = native.kernels(Path(__file__).with_suffix(".c"), _SIGNATURES)
 
@@ -101,6 +105,7 @@ class NonlocalAverage:
         check_range("skin", skin, 0.0, np.inf, closed=(True, False))
         self.radius, self.weight, self.skin = float(radius), weight, float(skin)
         self._slot_ids = None
+        self._pairs = _Pairs.empty(0, 0)
         self._within, self._w = _Pairs.empty(0, 0), np.zeros(0)  # the pairs closer than r, weights
         self.rebuilds = 0
         if not self.is_local:
@@ -119,14 +124,7 @@ class NonlocalAverage:
 
     def _rebuild(self, x: np.ndarray, ids: np.ndarray) -> None:
         n = len(x)
-        pairs = cKDTree(x).query_pairs(self.radius + self.skin, output_type="ndarray")
-        # Rows in order, columns sorted within a row: the weights' gathers then walk through
-        # memory (2-3x faster than in the KD-tree's order).
-        m = len(pairs)
-        i, j = np.ascontiguousarray(pairs.T, dtype=np.int32)
-        scratch = np.empty((2, m), dtype=np.int32)
-        _kernels().pair_sort(n, m, i, j, scratch[0], scratch[1], np.empty(n + 1, dtype=np.int64))
-        self._pairs = _Pairs.of(i, j)
+        self._pairs = _search(x, self.radius + self.skin, len(self._pairs.j) if self.rebuilds else None)
         self._slot_ids, self._x_ref, self._base = ids.copy(), x.copy(), n
         self._base_runs = len(self._pairs.row)
         self._x_slot = x.copy()
@@ -280,6 +278,39 @@ class NonlocalAverage:
         if self.is_local:
             return e
         return self._apply(self._volume * e) / self._denominator
+
+
+def _search(x: np.ndarray, reach: float, capacity: int | None = None) -> _Pairs:
+    """Every unordered pair of the points ``x`` (``(n, gdim)``) at most ``reach`` apart, once.
+
+    ``capacity`` is a guess of their number, default ``16 n`` (the search runs again if it
+    was short).
+    """
+    n, gdim = x.shape
+    if n == 0:
+        return _Pairs.empty(0, 0)
+    columns = [x[:, c] for c in range(gdim)]  # by columns: numpy is slow over short rows
+    lo = np.array([c.min() for c in columns])
+    extent = np.array([c.max() for c in columns]) - lo
+    # Cubes of side >= reach, at most about two per point (a sparse cloud gets larger ones).
+    side = reach
+    while math.prod(int(e / side) + 1 for e in extent) > 2 * n + 8:
+        side *= 1.5
+    num_cubes = (extent / side).astype(np.int64) + 1
+    cube, order = np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int32)
+    start = np.empty(math.prod(num_cubes) + 1, dtype=np.int64)
+    counts = np.zeros(2, dtype=np.int64)
+    capacity = 16 * n if capacity is None else capacity
+    while True:
+        pairs = _Pairs.empty(n, capacity)
+        _kernels().pair_search(
+            n, gdim, x, reach, lo, side, num_cubes, capacity, pairs.row, pairs.begin, pairs.j,
+            cube, order, start, counts,
+        )  # fmt: skip
+        if counts[1] <= capacity:
+            runs, m = counts
+            return _Pairs(pairs.row[:runs], pairs.begin[: runs + 1], pairs.j[:m])
+        capacity = int(counts[1])
 
 
 def _near(points: np.ndarray, others: np.ndarray, distance: float) -> np.ndarray:

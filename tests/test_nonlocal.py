@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from dolfin_mpm.nonlocal_average import WEIGHTS, NonlocalAverage
+from dolfin_mpm.nonlocal_average import WEIGHTS, NonlocalAverage, _search
 
 #: Weights in double precision from the positions; fields here lie in [0, 1].
 ATOL = 1e-12
@@ -64,6 +64,27 @@ def test_weight_functions():
     assert np.allclose(w["cubic"], [1.0, 0.5, 1.0 + 0.81 * (1.8 - 3.0), 0.0, 0.0], rtol=0.0, atol=1e-15)
     assert np.allclose(w["gaussian"], [1.0, np.exp(-0.625), np.exp(-2.025), 0.0, 0.0], rtol=0.0, atol=1e-15)
     assert np.allclose(w["constant"], [1.0, 1.0, 1.0, 0.0, 0.0], rtol=0.0, atol=1e-15)
+
+
+@pytest.mark.parametrize(
+    "x",
+    [
+        np.random.default_rng(7).random((600, 2)),
+        np.random.default_rng(8).random((600, 3)),
+        np.random.default_rng(9).random((300, 3)) * [100.0, 1.0, 0.01],  # sparse: cubes grow
+        np.c_[np.repeat(np.linspace(0.0, 1.0, 50), 3), np.zeros((150, 2))],  # on a line, repeated
+        np.zeros((1, 2)),
+    ],
+    ids=["2d", "3d", "sparse", "line", "one"],
+)
+def test_pair_search_finds_each_close_pair_once(x):
+    reach = 0.08
+    found = _search(x, reach, capacity=1)  # too little room: the search runs again
+    i, j = found.expand().T
+    d2 = ((x[:, None, :] - x[None, :, :]) ** 2).sum(axis=2)
+    expected = np.argwhere(np.triu(d2 <= reach**2, k=1))
+    assert np.all(i < j) and np.all(np.diff(found.row) > 0)  # each pair once, runs in order
+    assert np.array_equal(np.unique(np.c_[i, j], axis=0), expected) and len(i) == len(expected)
 
 
 def test_skin_reuse_equals_fresh_rebuild():
