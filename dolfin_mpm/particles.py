@@ -5,6 +5,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from dolfin_mpm.tensor import component_first, particle_first
+
 __all__ = ["Particles", "Sink"]
 
 
@@ -65,20 +67,37 @@ class Particles:
     def keep(self, mask: np.ndarray) -> None:
         """Keep only the particles where ``mask`` is true (in place)."""
         for name, a in list(self.arrays()):
-            self._set(name, a[mask])
+            self._set(name, _select(a, mask))
 
     def take(self, index: np.ndarray) -> "Particles":
         """A new Particles holding copies of the selected particles."""
         out = Particles.__new__(Particles)
         out.state = {}
         for name, a in self.arrays():
-            out._set(name, a[index].copy())
+            out._set(name, _select(a, index))
         return out
 
     def extend(self, other: "Particles") -> None:
         """Append the particles of ``other`` (same fields)."""
         for name, a in list(self.arrays()):
-            self._set(name, np.concatenate([a, dict(other.arrays())[name]]))
+            b = dict(other.arrays())[name]
+            if _component_first(a):
+                self._set(name, particle_first(np.concatenate([component_first(a), component_first(b)], -1)))
+            else:
+                self._set(name, np.concatenate([a, b]))
+
+
+def _component_first(a: np.ndarray) -> bool:
+    """Whether ``a`` is a particle-first view of component-first memory (as the kernels write)."""
+    return a.ndim > 1 and not a.flags.c_contiguous and np.moveaxis(a, 0, -1).flags.c_contiguous
+
+
+def _select(a: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """A copy of the particles ``index`` of ``a``, in the memory layout of ``a``."""
+    if _component_first(a):  # the kernels read it so: no transposed copy at each use
+        index = np.flatnonzero(index) if index.dtype == bool else index
+        return particle_first(np.take(component_first(a), index, axis=-1))  # (not [..., index]: transposed)
+    return a[index]
 
 
 @dataclass

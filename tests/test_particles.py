@@ -29,3 +29,21 @@ def test_keep_take_extend_keep_fields_aligned():
     assert list(P.id) == [0, 2, 4, 10, 11]
     assert np.array_equal(P.state["eps_vp"], [0.0, 4.0, 8.0, 0.0, 2.0])
     assert P.sigma.shape == (5, 3, 3) and P.v.shape == (5, 2)
+
+
+def test_stress_written_component_first_stays_so():
+    """The kernels write the stress component-first; removing, taking and appending particles
+    keeps that layout (a transposed copy would cost one at every use)."""
+    from dolfin_mpm.tensor import component_first, particle_first
+
+    P, Q = make(6), make(3, offset=6)
+    values = np.arange(9 * 9.0).reshape(9, 3, 3)
+    P.sigma, Q.sigma = (particle_first(component_first(v)) for v in (values[:6], values[6:]))
+    in_place = lambda a: np.shares_memory(component_first(a), a)  # noqa: E731
+    P.keep(P.id != 1)
+    assert np.array_equal(P.sigma, values[[0, 2, 3, 4, 5]]) and in_place(P.sigma)
+    taken = P.take(np.array([3, 0]))
+    assert np.array_equal(taken.sigma, values[[4, 0]]) and in_place(taken.sigma)
+    P.extend(Q)
+    assert np.array_equal(P.sigma, values[[0, 2, 3, 4, 5, 6, 7, 8]]) and in_place(P.sigma)
+    assert np.array_equal(P.id, [0, 2, 3, 4, 5, 6, 7, 8])
