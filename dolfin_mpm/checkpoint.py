@@ -1,13 +1,13 @@
 """Checkpoints: everything a run carries from one step to the next, in one HDF5 file.
 
 Per rank: every particle array (``cell`` and the material state included), the sinks'
-records, the non-local average's reference positions (see :meth:`NonlocalAverage.state`)
-and the solver's last changes of the internal forces (its fixed-point loop extrapolates
-them); for the run: time, step, time step, damping, the events
-applied and the recorded history. Rank 0 gathers and writes it under a temporary name,
-flushes it to disk and renames it over the previous checkpoint, so that a crash at any moment
-leaves the last complete one. Restoring it into a freshly built scenario continues the run
-bit for bit (on the same number of ranks).
+records, the non-local average's reference positions (see :meth:`NonlocalAverage.state`) and
+its halo on several ranks (see :meth:`DistributedAverage.state`), and the solver's last changes
+of the internal forces (its fixed-point loop extrapolates them); for the run: time, step, time
+step, damping, the events applied and the recorded history. Rank 0 gathers and writes it under
+a temporary name, flushes it to disk and renames it over the previous checkpoint, so that a
+crash at any moment leaves the last complete one. Restoring it into a freshly built scenario
+continues the run bit for bit (on the same number of ranks).
 """
 
 import os
@@ -15,13 +15,14 @@ from pathlib import Path
 
 import h5py
 import numpy as np
+from mpi4py import MPI
 
 from dolfin_mpm.particles import Particles
 
 __all__ = ["FORMAT", "CheckpointError", "read", "restore", "write"]
 
 #: Layout version, stored in the file.
-FORMAT = 2
+FORMAT = 3
 
 
 class CheckpointError(RuntimeError):
@@ -40,9 +41,10 @@ def _local_state(sim) -> dict:
     averaging = s.averaging.state() if s.averaging is not None else {}
     owned = s.grid.num_owned_nodes * s.grid.gdim
     R_changes = np.array(s.R_changes, dtype=np.float64).reshape(len(s.R_changes), owned)
+    nodes = s.grid.node_x[: s.grid.num_owned_nodes]  # R's order: the same partition on resume
     return {
         "particles": dict(s.particles.arrays()), "sinks": sinks, "nonlocal": averaging,
-        "solver": {"R_changes": R_changes},
+        "solver": {"R_changes": R_changes, "nodes": nodes},
     }  # fmt: skip
 
 
@@ -153,8 +155,11 @@ def restore(sim, data: dict) -> None:
     ):
         raise CheckpointError("the checkpoint does not fit the scenario (particle fields or sinks differ)")
     R_changes = np.array(data["solver"]["R_changes"], dtype=np.float64)
-    if R_changes.shape[1:] != (s.grid.num_owned_nodes * s.grid.gdim,):
-        raise CheckpointError("the checkpoint does not fit the scenario (the grid's nodes differ)")
+    same_nodes = np.array_equal(data["solver"]["nodes"], s.grid.node_x[: s.grid.num_owned_nodes])
+    if not s.comm.allreduce(same_nodes, MPI.LAND):  # on every rank
+        raise CheckpointError(
+            "the checkpoint does not fit the scenario (the grid's nodes, or their partition, differ)"
+        )
     for name, a in arrays.items():
         setattr(P, name, np.ascontiguousarray(a))
     P.state = {name: np.ascontiguousarray(a) for name, a in state.items()}

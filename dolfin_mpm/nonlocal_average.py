@@ -118,8 +118,8 @@ class NonlocalAverage:
     # -- slots: every particle the pair list knows, in the order it became known -------------------
     # Slots ``[0, base)`` are the particles of the last rebuild, the first ``base_pairs`` pairs
     # theirs; later slots arrived since, their pairs (with any slot) appended. ``x_ref`` is each
-    # slot's position when its pairs were found, ``x_slot`` its position now (dead slots keep
-    # their last one); ``live`` is False for removed particles. The caller's particles map to
+    # slot's position when its pairs were found, ``x_slot`` its position now (infinity for a
+    # dead slot); ``live`` is False for removed particles. The caller's particles map to
     # their slots through ``slot``. Pairs ``(i, j)`` are int32, each unordered pair once.
 
     def _rebuild(self, x: np.ndarray, ids: np.ndarray) -> None:
@@ -132,9 +132,13 @@ class NonlocalAverage:
         self.rebuilds += 1
 
     def _set_live(self, slot: np.ndarray, ids: np.ndarray) -> None:
-        """The caller's particles ``ids`` are the slots ``slot``; every other slot is dead."""
+        """The caller's particles ``ids`` are the slots ``slot``; every other slot is dead.
+
+        Dead slots move to infinity: the weight pass drops their pairs, whatever their history.
+        """
         self._live = np.zeros(len(self._slot_ids), dtype=bool)
         self._live[slot] = True
+        self._x_slot[~self._live] = np.inf
         self._slot, self._ids = slot, ids.copy()
         order = np.argsort(ids, kind="stable")
         self._sorted_ids, self._sorted_slots = ids[order], slot[order]

@@ -85,17 +85,25 @@ def migrate(grid: Grid, particles: Particles, cells: np.ndarray) -> int:
 class DistributedAverage:
     """A :class:`~dolfin_mpm.nonlocal_average.NonlocalAverage` over all ranks' particles.
 
-    Each :meth:`update` builds a :class:`Halo` of width ``radius``; the average of this rank's
-    particles then takes in their neighbours on other ranks, as a serial run would.
+    Each :meth:`update` gathers the other ranks' particles of a :class:`Halo` of width
+    ``radius + skin``; the average of this rank's particles then takes in their neighbours on
+    other ranks, as a serial run would. The halo's set of particles is kept, as the pair list
+    is, while no particle has moved more than half the skin since it was built and no particle
+    has arrived on any rank since (a migrated particle's new neighbours may lie outside it);
+    particles that leave only drop out of it.
     """
 
     def __init__(self, average, comm):
         self.average, self.comm = average, comm
+        self.halo: Halo | None = None
+        self.halo_builds = 0  #: halos built so far
         self.halo_seconds = 0.0  #: time spent building and exchanging halos [s]
 
     def update(self, x: np.ndarray, volume: np.ndarray, ids: np.ndarray) -> None:
         start = time.perf_counter()
-        self.halo = Halo(self.comm, x, self.average.radius)
+        if self.halo is None or not self.halo.follow(x, ids, 0.5 * self.average.skin):
+            self.halo = Halo(self.comm, x, ids, self.average.radius + self.average.skin)
+            self.halo_builds += 1
         self.n = len(x)
         x, volume, ids = (np.concatenate([a, self.halo.gather(a)]) for a in (x, volume, ids))
         self.halo_seconds += time.perf_counter() - start
@@ -107,9 +115,22 @@ class DistributedAverage:
         self.halo_seconds += time.perf_counter() - start
         return self.average(e)[: self.n]
 
+    def state(self) -> dict:
+        """The wrapped average's :meth:`~NonlocalAverage.state`, and the halo's under ``"halo"``."""
+        state = self.average.state()
+        if state:
+            state["halo"] = self.halo.state()
+        return state
+
+    def restore(self, state: dict) -> None:
+        """Continue from :meth:`state`: the same halo and pair list, bit for bit."""
+        state = dict(state)
+        halo = state.pop("halo", None)
+        self.halo = Halo.restored(self.comm, halo) if halo is not None else None
+        self.average.restore(state)
+
     def __getattr__(self, name):
-        # radius, weight, rebuilds, state(), restore(): the wrapped average's (its pair list is
-        # this rank's; the halo is rebuilt at every update).
+        # radius, skin, weight, rebuilds: the wrapped average's (its pair list is this rank's).
         return getattr(self.average, name)
 
 
@@ -118,17 +139,18 @@ class Halo:
 
     Space is cut into cubes of side ``margin``; each rank sends the particles in the cubes
     next to (or in) a cube another rank has particles in, a superset of those within
-    ``margin`` of them. The halo is fixed at construction and :meth:`gather` fetches any
-    per-particle field for it.
+    ``margin`` of them. :meth:`gather` fetches any per-particle field for the halo, and
+    :meth:`follow` keeps it for the particles of later steps.
 
     Args:
         comm: the communicator of the grid.
         x: this rank's particle positions, ``shape=(n, gdim)``.
-        margin: distance [m] the halo must cover, > 0 (the averaging radius).
+        ids: their global numbers, ``shape=(n,)``.
+        margin: distance [m] the halo must cover, > 0.
 
     """
 
-    def __init__(self, comm, x: np.ndarray, margin: float):
+    def __init__(self, comm, x: np.ndarray, ids: np.ndarray, margin: float):
         self.comm = comm
         gdim = x.shape[1]
         # Column by column: numpy is slow over the short rows of an (n, gdim) array.
@@ -145,15 +167,68 @@ class Halo:
         dense = num_cubes <= 8 * len(x)
         occupied = comm.allgather(np.flatnonzero(_flags(key, num_cubes)) if dense else np.unique(key))
         offsets = np.stack(np.meshgrid(*[[-1, 0, 1]] * gdim, indexing="ij"), -1).reshape(-1, gdim)
-        self.send = []  # per rank: indices of the particles it gets
+        send = []  # per rank: indices of the particles it gets
         for rank, keys in enumerate(occupied):
             if rank == comm.rank or keys.size == 0:
-                self.send.append(np.zeros(0, dtype=np.intp))
+                send.append(np.zeros(0, dtype=np.intp))
                 continue
             near = np.unravel_index(keys, shape)
             near = np.ravel_multi_index((np.stack(near, -1)[:, None, :] + offsets).reshape(-1, gdim).T, shape)
             is_near = _flags(near, num_cubes)[key] if dense else np.isin(key, near)
-            self.send.append(np.flatnonzero(is_near))
+            send.append(np.flatnonzero(is_near))
+        self._built(x, ids, send)
+
+    def _built(self, x: np.ndarray, ids: np.ndarray, send: list[np.ndarray]) -> None:
+        """Keep the build: particles ``x`` and ``ids`` of this rank, ``send`` the indices per rank."""
+        self.x_built, self.ids_built, self.send_built = x.copy(), ids.copy(), send
+        self._order = np.argsort(ids, kind="stable")
+        self._ids, self._index, self.send = self.ids_built, None, send  # now: the build's particles
+
+    def follow(self, x: np.ndarray, ids: np.ndarray, limit: float) -> bool:
+        """Keep the halo for this rank's particles now, ``x`` and ``ids`` (collective).
+
+        It holds if, on every rank, every particle was there at the build and none has moved
+        more than ``limit`` [m] since; :meth:`gather` then sends the build's particles still
+        present, in the build's order. Returns whether it holds.
+        """
+        index, arrived = self._index, False  # index: each particle's place at the build
+        if not (ids is self._ids or np.array_equal(ids, self._ids)):
+            if len(self.ids_built) == 0:
+                index, arrived = np.zeros(0, dtype=np.intp), len(ids) > 0
+            else:
+                k = np.minimum(np.searchsorted(self.ids_built, ids, sorter=self._order), len(self._order) - 1)
+                index = self._order[k]
+                arrived = not np.array_equal(self.ids_built[index], ids)
+        moved = 0.0
+        if not arrived and len(ids):
+            x_then = self.x_built if index is None else self.x_built[index]
+            moved = max(np.max((x[:, c] - x_then[:, c]) ** 2) for c in range(x.shape[1]))
+        if self.comm.allreduce(arrived or moved > limit**2, MPI.LOR):
+            return False
+        if index is not self._index:
+            now = np.full(len(self.ids_built), -1, dtype=np.intp)
+            now[index] = np.arange(len(ids))
+            self.send = [i[i >= 0] for i in (now[s] for s in self.send_built)]
+            self._ids, self._index = ids, index
+        return True
+
+    def state(self) -> dict[str, np.ndarray]:
+        """The build: positions and ids of this rank's particles, and the indices sent to each rank."""
+        return {
+            "x_built": self.x_built,
+            "ids_built": self.ids_built,
+            "send": np.concatenate(self.send_built),
+            "send_counts": np.array([len(s) for s in self.send_built]),
+        }
+
+    @classmethod
+    def restored(cls, comm, state: dict[str, np.ndarray]) -> "Halo":
+        """The halo of :meth:`state`."""
+        halo = cls.__new__(cls)
+        halo.comm = comm
+        send = np.split(np.asarray(state["send"], dtype=np.intp), np.cumsum(state["send_counts"])[:-1])
+        halo._built(np.asarray(state["x_built"]), np.asarray(state["ids_built"]), send)
+        return halo
 
     def gather(self, values: np.ndarray) -> np.ndarray:
         """The halo's copies of ``values`` (particle axis first), from all other ranks in turn."""

@@ -5,8 +5,11 @@ particle. Where the particles fill only part of the mesh (a silo above its free-
 ranks then hold very different numbers of them. :func:`bisection` deals cells to ranks by
 recursive coordinate bisection of a per-cell weight (the particles a cell will hold), and
 :func:`destinations` adds the ghost ranks, in the form DOLFINx's partitioner hook returns;
-:func:`create_rectangle` builds a mesh so. The partition is fixed at mesh creation: choose cuts
-that particles do not cross in bulk as the run goes on (a symmetric silo: across its width).
+:func:`create_rectangle` and :func:`create_box` build a mesh so. The partition is fixed at mesh
+creation: choose cuts that particles do not cross in bulk as the run goes on (a symmetric silo:
+across its width). Unlike DOLFINx's graph partitioners, which may cut a mesh differently from
+one run to the next, the bisection is the same in every run, so a checkpoint of the run can be
+resumed on as many ranks.
 """
 
 from collections.abc import Callable
@@ -18,7 +21,7 @@ from mpi4py import MPI
 
 from dolfin_mpm import compat
 
-__all__ = ["bisection", "create_rectangle", "destinations"]
+__all__ = ["bisection", "create_box", "create_rectangle", "destinations"]
 
 
 def bisection(points: np.ndarray, weight: np.ndarray, nparts: int, axes=None) -> np.ndarray:
@@ -85,36 +88,59 @@ def destinations(cells: np.ndarray, part: np.ndarray) -> tuple[np.ndarray, np.nd
     return data, offsets
 
 
-def create_rectangle(comm, corners, n, weight: Callable | None = None, axes=None):
+def create_rectangle(comm, corners, n, weight: Callable | None = None, axes=None, diagonal="right"):
     """DOLFINx's rectangle of ``n = (nx, ny)`` squares of two triangles between ``corners``.
 
     Without ``weight`` (or on one rank) it is ``dolfinx.mesh.create_rectangle``. With it, the
     same mesh's cells go to the ranks by :func:`bisection` of ``weight(centroids)``
     (``shape=(3, m)`` -> ``(m,)``, e.g. the particles a cell will hold; called on rank 0 only)
-    along ``axes``.
+    along ``axes``; the partition is then the same in every run.
 
     Raises:
         ValueError: on every rank, for a bad weight or a rank left without cells.
 
     """
     corners = [np.asarray(c, dtype=np.float64) for c in corners]
+    diagonal = getattr(dmesh.DiagonalType, diagonal.replace("/", "_"))
+    create = lambda comm: dmesh.create_rectangle(  # noqa: E731
+        comm, corners, list(n), dmesh.CellType.triangle, diagonal=diagonal
+    )
+    return _create(comm, create, weight, axes)
+
+
+def create_box(comm, corners, n, weight: Callable | None = None, axes=None):
+    """DOLFINx's box of ``n = (nx, ny, nz)`` cubes of six tetrahedra.
+
+    Partitioned as :func:`create_rectangle` partitions a rectangle.
+    """
+    corners = [np.asarray(c, dtype=np.float64) for c in corners]
+    return _create(
+        comm, lambda comm: dmesh.create_box(comm, corners, list(n), dmesh.CellType.tetrahedron), weight, axes
+    )
+
+
+def _create(comm, create: Callable, weight: Callable | None, axes):
+    """The mesh ``create(comm)``, its cells dealt to the ranks by :func:`bisection` of ``weight``."""
     if weight is None or comm.size == 1:
-        return dmesh.create_rectangle(comm, corners, list(n), dmesh.CellType.triangle)
-    cells, x, dest, error = np.zeros((0, 3), np.int64), np.zeros((0, 2)), None, None
+        return create(comm)
+    cells, dest, error = None, None, None
     if comm.rank == 0:
-        serial = dmesh.create_rectangle(MPI.COMM_SELF, corners, list(n), dmesh.CellType.triangle)
-        cells, x = compat.geometry_dofmap(serial).astype(np.int64), serial.geometry.x[:, :2].copy()
+        serial = create(MPI.COMM_SELF)
+        gdim = serial.geometry.dim
+        cells, x = compat.geometry_dofmap(serial).astype(np.int64), serial.geometry.x[:, :gdim].copy()
         centroids = np.zeros((3, len(cells)))
-        centroids[:2] = x[cells].mean(axis=1).T
+        centroids[:gdim] = x[cells].mean(axis=1).T
         try:
             w = np.asarray(weight(centroids), dtype=np.float64)
-            part = bisection(centroids[:2].T, w, comm.size, axes)
+            part = bisection(centroids[:gdim].T, w, comm.size, axes)
             if np.bincount(part, minlength=comm.size).min() == 0:
-                raise ValueError(f"axes={axes}: {comm.size} ranks cannot all get cells of a {n} rectangle")
+                raise ValueError(f"axes={axes}: {comm.size} ranks cannot all get cells of these {len(cells)}")
             dest = destinations(cells, part)
         except ValueError as e:
             error = str(e)
-    error = comm.bcast(error, root=0)
+    error, gdim = comm.bcast((error, gdim if comm.rank == 0 else None), root=0)
     if error:
         raise ValueError(error)
+    if comm.rank != 0:
+        cells, x = np.zeros((0, gdim + 1), np.int64), np.zeros((0, gdim))
     return compat.create_mesh(comm, cells, x, dest)

@@ -23,7 +23,7 @@ except ModuleNotFoundError:  # Python < 3.11
 
 from mpi4py import MPI
 
-from dolfin_mpm import compat
+from dolfin_mpm import compat, partition
 from dolfin_mpm.boundary import BoundaryCondition, FixedBC, FrictionalWall, SlipBC, VelocityBC
 from dolfin_mpm.grid import Grid
 from dolfin_mpm.materials import DruckerPragerViscoplastic, LinearElastic
@@ -588,15 +588,14 @@ def _make_region(spec: dict, tol: float) -> Region:
 
 
 def _make_mesh(m: dict, comm):
-    from dolfinx import mesh
-
     if m["shape"] == "file":
         return compat.read_mesh(comm, m["file"], m["gdim"])
-    corners = [np.array(m["lower"]), np.array(m["upper"])]
+    # On several ranks, cells dealt by count in coordinate bisection: the same partition in every
+    # run, which a resumed run needs (DOLFINx's graph partitioners may cut differently each time).
+    corners, count = [np.array(m["lower"]), np.array(m["upper"])], lambda c: np.ones(c.shape[1])
     if m["shape"] == "box":
-        return mesh.create_box(comm, corners, m["cells"], mesh.CellType.tetrahedron)
-    diagonal = getattr(mesh.DiagonalType, m["diagonal"].replace("/", "_"))
-    return mesh.create_rectangle(comm, corners, m["cells"], mesh.CellType.triangle, diagonal=diagonal)
+        return partition.create_box(comm, corners, m["cells"], weight=count)
+    return partition.create_rectangle(comm, corners, m["cells"], weight=count, diagonal=m["diagonal"])
 
 
 def build(cfg: dict, comm=MPI.COMM_WORLD) -> Simulation:

@@ -8,14 +8,17 @@ from contextlib import nullcontext
 import dolfin_mpm as dm
 
 # isort: split
+import h5py
 import numpy as np
 import pytest
 from conftest import rectangle
 from dolfinx import mesh
 from mpi4py import MPI
 from scipy.spatial import cKDTree
+from test_checkpoint import SCENARIO
 from test_demos import load
 
+from dolfin_mpm.cli import main
 from dolfin_mpm.locate import locate
 from dolfin_mpm.parallel import DistributedAverage, migrate
 
@@ -67,6 +70,49 @@ def test_average_with_halo_equals_the_serial_average(dim, weight, radius):
     average = DistributedAverage(dm.NonlocalAverage(radius, weight), comm)
     average.update(x[mine], volume[mine], ids[mine])
     assert average(e[mine]) == pytest.approx(expected[mine], rel=1e-12, abs=1e-12)
+
+
+def test_halo_is_kept_while_particles_move_less_than_half_the_skin():
+    """Moves, removals and an arrival: always the serial average; the state restores it exactly."""
+    rng = np.random.default_rng(4)  # the same cloud and moves on every rank
+    n, radius, skin = 800, 0.1, 0.04
+    x, volume, e = rng.uniform(0.0, 1.0, (n, 2)), rng.uniform(0.5, 1.5, n), rng.normal(size=n)
+    ids = np.arange(n)
+    present = np.ones(n, dtype=bool)
+    owner = np.minimum((x[:, 0] * comm.size).astype(int), comm.size - 1)
+    new_average = lambda: DistributedAverage(dm.NonlocalAverage(radius, "cubic", skin=skin), comm)  # noqa: E731
+    average = new_average()
+
+    def step(average):
+        mine = np.flatnonzero(present & (owner == comm.rank))
+        average.update(x[mine], volume[mine], ids[mine])
+        serial = dm.NonlocalAverage(radius, "cubic", skin=0.0)
+        serial.update(x[present], volume[present], ids[present])
+        expected = np.zeros(n)
+        expected[present] = serial(e[present])
+        result = average(e[mine])
+        assert result == pytest.approx(expected[mine], rel=1e-12, abs=1e-12)
+        return result
+
+    step(average)
+    for _ in range(4):  # 4 x 0.004 < skin / 2 in all; some particles leave (a sink)
+        x += rng.uniform(-0.004, 0.004, x.shape)
+        present &= rng.random(n) > 0.02
+        step(average)
+    assert average.halo_builds == 1
+    restored = new_average()
+    restored.restore(average.state())
+    x += rng.uniform(-0.002, 0.002, x.shape)
+    assert np.array_equal(step(restored), step(average))
+    assert (average.halo_builds, restored.halo_builds) == (1, 0)  # both kept their halo
+    x += 0.03  # more than half the skin: a new halo
+    step(average)
+    assert average.halo_builds == 2
+    # A particle that moves to another rank: a new halo on every rank.
+    k = np.flatnonzero(present)[0]
+    owner[k] = (owner[k] + 1) % comm.size
+    step(average)
+    assert average.halo_builds == (3 if comm.size > 1 else 2)
 
 
 def silo_run(comm, steps=200, strips=True):
@@ -130,6 +176,21 @@ def test_bad_partition_weight_fails_on_every_rank():
         dm.partition.create_rectangle(comm, [(0, 0), (1, 1)], (4, 4), weight=lambda x: -x[0])
 
 
+@pytest.mark.parametrize("dim", [2, 3])
+def test_bisection_by_count_gives_the_same_balanced_partition_each_time(dim):
+    """What a scenario's mesh gets on several ranks, so that a checkpoint fits the next run."""
+    count = lambda c: np.ones(c.shape[1])  # noqa: E731
+    if dim == 2:
+        create = lambda: dm.partition.create_rectangle(comm, [(0, 0), (1, 2)], (6, 9), count, diagonal="left")  # noqa: E731
+    else:
+        create = lambda: dm.partition.create_box(comm, [(0, 0, 0), (1, 1, 2)], (3, 3, 4), count)  # noqa: E731
+    grids = [dm.Grid(create()) for _ in range(3)]
+    nodes = [g.node_x[: g.num_owned_nodes] for g in grids]
+    assert all(np.array_equal(nodes[0], n) for n in nodes[1:])
+    owned = comm.allgather(grids[0].num_owned_cells)
+    assert sum(owned) == (108 if dim == 2 else 216) and max(owned) - min(owned) <= 6 * dim - 6
+
+
 def test_strips_of_equal_fill_balance_the_silo():
     solver, _ = load("demo_silo").build(h=0.01, comm=comm)
     counts = comm.allgather(len(solver.particles))
@@ -181,3 +242,38 @@ def test_run_with_progress_on_all_ranks(capsys):
         assert f"particles {n}" in out.splitlines()[-1]
     else:
         assert out == ""
+
+
+def test_resume_on_all_ranks_ends_where_the_uninterrupted_run_ends(tmp_path):
+    """Each rank's checkpoint carries its halo and pair list: the resumed run is bit-identical."""
+    folder = comm.bcast(tmp_path, root=0)
+    scenario = folder / "fall.toml"
+    if comm.rank == 0:
+        scenario.write_text(SCENARIO)
+    comm.Barrier()
+    quiet = ["--quiet", "--output"]
+    assert main(["run", str(scenario), *quiet, str(folder / "reference")]) == 0
+    assert main(["run", str(scenario), *quiet, str(folder / "run"), "--set", "time.end=0.023"]) == 0
+    assert main(["resume", str(folder / "run"), "--quiet", "--set", "time.end=0.04"]) == 0
+    if comm.rank == 0:
+        reference, resumed = (checkpoint_state(folder / f / "checkpoint.h5") for f in ("reference", "run"))
+        assert reference["attrs/ranks"] == comm.size
+        assert comm.size == 1 or any(k.endswith("nonlocal/halo/send") for k in reference)
+        assert reference.keys() == resumed.keys()
+        for k in reference:
+            assert np.array_equal(reference[k], resumed[k]), k
+
+
+def checkpoint_state(path) -> dict:
+    """Every rank's part of a checkpoint and its attributes, flattened (not the history)."""
+    out = {}
+    with h5py.File(path, "r") as f:
+        out.update({f"attrs/{k}": np.asarray(v) for k, v in f.attrs.items()})
+        for name in f:
+            if name.startswith("rank"):
+                f[name].visititems(
+                    lambda key, d, rank=name: (
+                        out.update({f"{rank}/{key}": d[()]}) if isinstance(d, h5py.Dataset) else None
+                    )
+                )
+    return out
