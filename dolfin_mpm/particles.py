@@ -66,8 +66,9 @@ class Particles:
 
     def keep(self, mask: np.ndarray) -> None:
         """Keep only the particles where ``mask`` is true (in place)."""
+        index = np.flatnonzero(mask)  # once, not once per array
         for name, a in list(self.arrays()):
-            self._set(name, _select(a, mask))
+            self._set(name, _select(a, index))
 
     def take(self, index: np.ndarray) -> "Particles":
         """A new Particles holding copies of the selected particles."""
@@ -93,11 +94,10 @@ def _component_first(a: np.ndarray) -> bool:
 
 
 def _select(a: np.ndarray, index: np.ndarray) -> np.ndarray:
-    """A copy of the particles ``index`` of ``a``, in the memory layout of ``a``."""
+    """A copy of the particles ``index`` (integers) of ``a``, in the memory layout of ``a``."""
     if _component_first(a):  # the kernels read it so: no transposed copy at each use
-        index = np.flatnonzero(index) if index.dtype == bool else index
         return particle_first(np.take(component_first(a), index, axis=-1))  # (not [..., index]: transposed)
-    return a[index]
+    return np.take(a, index, axis=0)
 
 
 @dataclass
