@@ -15,8 +15,9 @@ import dolfin_mpm  # noqa: F401  (first: loads DOLFINx's libraries)
 import h5py
 import numpy as np
 import pytest
+from mpi4py import MPI
 
-from dolfin_mpm import NonlocalAverage, checkpoint
+from dolfin_mpm import NonlocalAverage, checkpoint, scenario
 from dolfin_mpm.cli import main
 from dolfin_mpm.progress import Progress
 
@@ -118,6 +119,15 @@ def test_resume_after_a_finished_shorter_run_is_bit_identical(scenario_file, ref
     )
     assert main(["resume", str(folder), "--quiet", "--set", "time.end=0.04"]) == 0
     assert_same(state(folder), reference)
+
+
+def test_a_checkpoint_of_other_nodes_is_refused(scenario_file, reference):
+    """As many nodes, elsewhere (as a mesh cut differently among ranks would give): refused."""
+    shifted = ["mesh.lower=[0.0, -0.01]", "mesh.upper=[0.1, 0.11]"]  # 1 cm down: a node row each cm
+    sim = scenario.build(scenario.load(scenario_file, shifted))
+    data = checkpoint.read(scenario_file.parent / "reference" / "checkpoint.h5", MPI.COMM_WORLD)
+    with pytest.raises(checkpoint.CheckpointError, match="grid's nodes, or their partition, differ"):
+        checkpoint.restore(sim, data)
 
 
 def _start(*args):
