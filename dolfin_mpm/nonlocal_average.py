@@ -215,30 +215,25 @@ class NonlocalAverage:
         self._set_live(slot, ids)
         self.rebuilds = int(state["rebuilds"])
 
-    def update(self, x: np.ndarray, volume: np.ndarray, ids: np.ndarray) -> None:
+    def update(self, x: np.ndarray, volume: np.ndarray, ids: np.ndarray, rebuild: bool | None = None) -> None:
         """Weights for the current positions ``x`` (``(n, gdim)``) and volumes ``(n,)``.
 
         ``ids`` (``(n,)``) identify the particles, in any order. The pair list is rebuilt when
         a particle has moved more than half the skin since the last rebuild (a third, once
         particles have arrived since), or when the removed ones outnumber a quarter of those
-        present; removed particles only lose their slot, arrived ones get one.
+        present; removed particles only lose their slot, arrived ones get one. ``rebuild``
+        True or False overrides the first test, for a caller that knows (all ranks at once).
         """
         if self.is_local:
             return
         x = np.ascontiguousarray(x, dtype=np.float64)
-        if self._slot_ids is None:
+        if self._slot_ids is None or rebuild:
             self._rebuild(x, ids)
         else:
             slot = self._slot if np.array_equal(ids, self._ids) else self._slots_of(ids)
-            if slot is self._slot and self._identity:  # the common case: no gathers
-                u, num_known = x - self._x_ref, len(ids)
-            else:
-                known = slot >= 0
-                u, num_known = x[known] - self._x_ref[slot[known]], int(known.sum())
-            arrived = len(self._slot_ids) > self._base or num_known < len(ids)
-            limit = self.skin / 3.0 if arrived else 0.5 * self.skin
+            num_known = len(ids) if slot is self._slot else int(np.count_nonzero(slot >= 0))
             dead = len(self._slot_ids) - num_known
-            if np.max(np.einsum("ij,ij->i", u, u), initial=0.0) > limit**2 or dead > 0.25 * len(ids):
+            if dead > 0.25 * len(ids) or (rebuild is None and self._moved_far(x, slot, num_known < len(ids))):
                 self._rebuild(x, ids)
             elif slot is not self._slot:
                 if num_known < len(ids):
@@ -260,6 +255,20 @@ class NonlocalAverage:
         self._runs_within = int(runs[0])
         self._volume = volume
         self._denominator = self._apply(volume)
+
+    def _moved_far(self, x: np.ndarray, slot: np.ndarray, arriving: bool) -> bool:
+        """Whether a known particle has moved too far since its pairs were found.
+
+        Half the skin, a third once particles have arrived; ``slot``: each particle's, -1 if
+        not known.
+        """
+        if slot is self._slot and self._identity:  # the common case: no gathers
+            u = x - self._x_ref
+        else:
+            known = slot >= 0
+            u = x[known] - self._x_ref[slot[known]]
+        limit = self.skin / 3.0 if arriving or len(self._slot_ids) > self._base else 0.5 * self.skin
+        return np.max(np.einsum("ij,ij->i", u, u), initial=0.0) > limit**2
 
     def _slot_field(self, v: np.ndarray) -> np.ndarray:
         """The caller's particle field ``v`` on the slots, zero on the dead ones."""

@@ -87,10 +87,11 @@ class DistributedAverage:
 
     Each :meth:`update` gathers the other ranks' particles of a :class:`Halo` of width
     ``radius + skin``; the average of this rank's particles then takes in their neighbours on
-    other ranks, as a serial run would. The halo's set of particles is kept, as the pair list
-    is, while no particle has moved more than half the skin since it was built and no particle
-    has arrived on any rank since (a migrated particle's new neighbours may lie outside it);
-    particles that leave only drop out of it.
+    other ranks, as a serial run would. The halo's set of particles is kept while no particle
+    has moved more than half the skin since it was built and no particle has arrived on any
+    rank since (a migrated particle's new neighbours may lie outside it); particles that leave
+    only drop out of it. The pair list is rebuilt with it, on all ranks in the same step, so
+    that no rank waits for another's rebuild; in between it only loses particles.
     """
 
     def __init__(self, average, comm):
@@ -101,13 +102,14 @@ class DistributedAverage:
 
     def update(self, x: np.ndarray, volume: np.ndarray, ids: np.ndarray) -> None:
         start = time.perf_counter()
-        if self.halo is None or not self.halo.follow(x, ids, 0.5 * self.average.skin):
+        rebuild = self.halo is None or not self.halo.follow(x, ids, 0.5 * self.average.skin)
+        if rebuild:
             self.halo = Halo(self.comm, x, ids, self.average.radius + self.average.skin)
             self.halo_builds += 1
         self.n = len(x)
         x, volume, ids = (np.concatenate([a, self.halo.gather(a)]) for a in (x, volume, ids))
         self.halo_seconds += time.perf_counter() - start
-        self.average.update(x, volume, ids)
+        self.average.update(x, volume, ids, rebuild=rebuild)
 
     def __call__(self, e: np.ndarray) -> np.ndarray:
         start = time.perf_counter()

@@ -22,8 +22,7 @@ from dolfin_mpm.nonlocal_average import NonlocalAverage
 from dolfin_mpm.parallel import DistributedAverage, migrate
 from dolfin_mpm.particles import Particles, Sink
 from dolfin_mpm.progress import Progress
-from dolfin_mpm.tensor import det
-from dolfin_mpm.transfer import gradient, internal_force, interpolate, scatter
+from dolfin_mpm.transfer import gradient, internal_force, interpolate, scatter, volume_ratio
 
 __all__ = ["SimulationError", "Solver"]
 
@@ -316,7 +315,7 @@ class Solver:
                 P.sigma[idx] = material.update(P.sigma[idx], L[idx], dt, state)
                 for name, a in state.items():
                     P.state[name][idx] = a
-        P.volume *= self._volume_ratio(L, dt)
+        P.volume *= volume_ratio(L, dt)
 
     def _step_nonlocal(self, basis: Basis, dt: float) -> None:
         """The paper's step (§3): a fixed-point loop on the internal forces ``R``.
@@ -359,7 +358,7 @@ class Solver:
                     de_bar = avg(de)
                 with self._stage("return_mapping"):
                     sigma = mat.stress(trial, de, de_bar)
-                volume = P.volume * self._volume_ratio(L, dt)
+                volume = P.volume * volume_ratio(L, dt)
             with self._stage("p2g"):
                 R = grid.assemble(grid.f_int, internal_force(basis, sigma, volume))
                 R = R.ravel()[:owned].copy()  # f_int takes the next iterate below
@@ -386,14 +385,6 @@ class Solver:
         """The change of the owned ``R`` in this step, extrapolated from the last steps' changes."""
         dR = self.R_changes[: self.extrapolation]
         return 2.0 * dR[0] - dR[1] if len(dR) == 2 else dR[0]
-
-    @staticmethod
-    def _volume_ratio(L: np.ndarray, dt: float) -> np.ndarray:
-        """Volume ratio of the step, ``det(I + dt L)``, ``shape=(n,)``."""
-        F_inc = dt * L
-        for i in range(L.shape[1]):
-            F_inc[:, i, i] += 1.0
-        return det(F_inc)
 
     def _check_finite(self) -> None:
         P = self.particles

@@ -10,7 +10,6 @@ import numpy as np
 
 __all__ = [
     "component_first",
-    "det",
     "deviator",
     "equivalent_stress",
     "from_mandel",
@@ -32,18 +31,6 @@ def component_first(a: np.ndarray) -> np.ndarray:
 def particle_first(c: np.ndarray) -> np.ndarray:
     """The ``shape=(n, ...)`` view of a component-first array."""
     return np.moveaxis(c, -1, 0)
-
-
-def det(A: np.ndarray) -> np.ndarray:
-    """Determinants of a stack of 2x2 or 3x3 matrices, ``shape=(n,)``."""
-    a = component_first(A)
-    if a.shape[0] == 2:
-        return a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]
-    return (
-        a[0, 0] * (a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1])
-        - a[0, 1] * (a[1, 0] * a[2, 2] - a[1, 2] * a[2, 0])
-        + a[0, 2] * (a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0])
-    )
 
 
 def deviator(sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

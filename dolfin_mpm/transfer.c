@@ -123,3 +123,18 @@ void gradient(int64_t n, int32_t gdim, const int64_t *dofs, const double *dN, in
     gradient_of(n, gdim, dofs, dN, k, nodal, out);
 }
 
+
+/* The volume ratio of a step, J = det(I + dt L), of the velocity gradients L (gdim, gdim, n),
+ * component-first, as gradient writes them; gdim 2 or 3. */
+void volume_ratio(int64_t n, int32_t gdim, const double *restrict L, double dt, double *restrict J)
+{
+#define F(a, b) ((a) == (b) ? 1.0 + dt * L[((a) * gdim + (b)) * n + k] : dt * L[((a) * gdim + (b)) * n + k])
+  if (gdim == 2)
+    for (int64_t k = 0; k < n; ++k)
+      J[k] = F(0, 0) * F(1, 1) - F(0, 1) * F(1, 0);
+  else
+    for (int64_t k = 0; k < n; ++k)
+      J[k] = F(0, 0) * (F(1, 1) * F(2, 2) - F(1, 2) * F(2, 1)) - F(0, 1) * (F(1, 0) * F(2, 2) - F(1, 2) * F(2, 0)) +
+             F(0, 2) * (F(1, 0) * F(2, 1) - F(1, 1) * F(2, 0));
+#undef F
+}

@@ -16,7 +16,7 @@ from dolfin_mpm import native
 from dolfin_mpm.locate import Basis
 from dolfin_mpm.tensor import component_first, particle_first
 
-__all__ = ["gradient", "internal_force", "interpolate", "scatter"]
+__all__ = ["gradient", "internal_force", "interpolate", "scatter", "volume_ratio"]
 
 _INT, _NODES, _REAL = ctypes.c_int32, native.array(np.int64), native.array(np.float64)
 _SIGNATURES = {
@@ -28,6 +28,7 @@ _SIGNATURES = {
         ("gradient", (_INT,)),
     )
 }
+_SIGNATURES["volume_ratio"] = (ctypes.c_int64, _INT, _REAL, ctypes.c_double, _REAL)
 _kernels = native.kernels(Path(__file__).with_suffix(".c"), _SIGNATURES)
 
 
@@ -84,3 +85,14 @@ def gradient(basis: Basis, nodal: np.ndarray) -> np.ndarray:
     out = np.empty((nodal.shape[1], gdim, n))
     _kernels().gradient(n, gdim, basis.dofs, basis.dN, nodal.shape[1], _as_real(nodal), out)
     return particle_first(out)
+
+
+def volume_ratio(L: np.ndarray, dt: float) -> np.ndarray:
+    """The volume ratio of a step, ``det(I + dt L)``, of velocity gradients ``L`` [1/s].
+
+    ``L.shape=(n, gdim, gdim)`` (as :func:`gradient` gives it: no copy), ``dt`` [s]; ``shape=(n,)``.
+    """
+    n, gdim = L.shape[:2]
+    J = np.empty(n)
+    _kernels().volume_ratio(n, gdim, component_first(np.asarray(L, dtype=np.float64)), dt, J)
+    return J

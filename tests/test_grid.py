@@ -10,7 +10,8 @@ from mpi4py import MPI
 
 import dolfin_mpm as dm
 from dolfin_mpm.locate import basis_at, locate
-from dolfin_mpm.transfer import gradient, internal_force, interpolate, scatter
+from dolfin_mpm.tensor import component_first, particle_first
+from dolfin_mpm.transfer import gradient, internal_force, interpolate, scatter, volume_ratio
 
 EPS = np.finfo(np.float64).eps
 
@@ -65,6 +66,14 @@ def test_transfers_equal_their_dense_sums(gdim):
         assert np.allclose(gradient(basis, nodal), L, rtol=0, atol=1e-12)
     R = sum(dN[j].T @ (volume[:, None] * sigma[:, :gdim, j]) for j in range(gdim))
     assert np.allclose(internal_force(basis, sigma, volume), R, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("gdim", [2, 3])
+def test_volume_ratio_is_the_determinant_of_the_step(gdim):
+    L = np.random.default_rng(gdim).normal(size=(50, gdim, gdim))
+    expected = np.linalg.det(np.eye(gdim) + 0.1 * L)
+    for layout in (L, particle_first(component_first(L))):  # as the gradient writes it, or not
+        assert volume_ratio(layout, 0.1) == pytest.approx(expected, rel=1e-14)
 
 
 def test_locate_cheap_path_and_search(unit_grid):

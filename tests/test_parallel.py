@@ -113,6 +113,7 @@ def test_halo_is_kept_while_particles_move_less_than_half_the_skin():
     owner[k] = (owner[k] + 1) % comm.size
     step(average)
     assert average.halo_builds == (3 if comm.size > 1 else 2)
+    assert average.rebuilds == average.halo_builds  # the pair list with the halo, not in between
 
 
 def silo_run(comm, steps=200, strips=True):

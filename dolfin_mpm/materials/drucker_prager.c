@@ -46,3 +46,21 @@ void dp_increment(int64_t n, const double *restrict p, const double *restrict q,
       de[k] = 0.0;
   }
 }
+
+/* End-state pressure p and equivalent stress q (n) of the trial state (p_trial, q_trial) and the
+ * increments de, or de_nonlocal where larger: q = max(q_trial - 2 G max(de, de_nonlocal), 0);
+ * at the apex (p_trial <= -c cot phi) q = 0 and p = -c cot phi. */
+void dp_end_state(int64_t n, const double *restrict p_trial, const double *restrict q_trial,
+                  const double *restrict de, const double *restrict de_nonlocal, double G,
+                  double tension_limit, double *restrict p, double *restrict q)
+{
+  const double two_G = 2.0 * G;
+  for (int64_t k = 0; k < n; ++k)
+  {
+    const double d = de_nonlocal[k] > de[k] ? de_nonlocal[k] : de[k];
+    const double q_k = q_trial[k] - two_G * d;
+    const int apex = p_trial[k] <= -tension_limit;
+    q[k] = apex || !(q_k > 0.0) ? 0.0 : q_k;
+    p[k] = apex ? -tension_limit : p_trial[k];
+  }
+}

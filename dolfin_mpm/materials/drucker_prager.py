@@ -45,7 +45,10 @@ from dolfin_mpm.materials.radial_return import IsochoricPlastic, Trial
 __all__ = ["DruckerPragerViscoplastic"]
 
 _REAL, _NUMBER = native.array(np.float64), ctypes.c_double
-_SIGNATURES = {"dp_increment": (ctypes.c_int64, _REAL, _REAL, *[_NUMBER] * 5, _REAL)}
+_SIGNATURES = {
+    "dp_increment": (ctypes.c_int64, _REAL, _REAL, *[_NUMBER] * 5, _REAL),
+    "dp_end_state": (ctypes.c_int64, _REAL, _REAL, _REAL, _REAL, _NUMBER, _NUMBER, _REAL, _REAL),
+}
 _kernels = native.kernels(Path(__file__).with_suffix(".c"), _SIGNATURES)
 
 
@@ -121,11 +124,11 @@ class DruckerPragerViscoplastic(IsochoricPlastic):
         ``de_nonlocal``, ``q = q_trial - 2 G max(de, de_nonlocal)``: neighbours can drag a
         point into viscoplastic flow but never give it more strength than its own law.
         """
-        if de_nonlocal is not None:
-            de = np.maximum(de, de_nonlocal)
-        q = np.maximum(trial.q - 2.0 * self.G * de, 0.0)
-        q[trial.p <= -self.tension_limit] = 0.0
-        return self.radial_stress(trial, q, np.maximum(trial.p, -self.tension_limit))
+        de = np.ascontiguousarray(de, dtype=np.float64)
+        de_nonlocal = de if de_nonlocal is None else np.ascontiguousarray(de_nonlocal, dtype=np.float64)
+        p, q = np.empty_like(de), np.empty_like(de)
+        _kernels().dp_end_state(len(de), trial.p, trial.q, de, de_nonlocal, self.G, self.tension_limit, p, q)
+        return self.radial_stress(trial, q, p)
 
     def tangent(self, trial: Trial, de: np.ndarray, dt: float) -> np.ndarray:
         """Consistent tangent of the local update ``stress(trial, increment(trial, dt))``.
