@@ -2,8 +2,8 @@
 
 The same silo on ``--h`` (2 mm: ~1.2e5 particles) on as many ranks as the script is started
 with. The outlet opens at the start; each run times ``--steps`` steps once ``--warmup`` steps
-have set the fill flowing (particles then cross the partition and the halos change every
-step), and the median of ``--runs`` runs is kept.
+have set the fill flowing (particles then cross the partition, and halos and pair lists are
+rebuilt as they move), and the median of ``--runs`` runs is kept.
 Prints the time per step, the share spent migrating particles and exchanging non-local halos,
 and the speed-up against the one-rank entry of the JSON file, which collects one entry per
 rank count:
