@@ -31,6 +31,7 @@ from scipy.spatial import cKDTree
 
 from dolfin_mpm import native
 from dolfin_mpm.materials.base import check_range
+from dolfin_mpm.particles import IdIndex
 
 __all__ = ["WEIGHTS", "NonlocalAverage"]
 
@@ -119,8 +120,9 @@ class NonlocalAverage:
     # Slots ``[0, base)`` are the particles of the last rebuild, the first ``base_pairs`` pairs
     # theirs; later slots arrived since, their pairs (with any slot) appended. ``x_ref`` is each
     # slot's position when its pairs were found, ``x_slot`` its position now (infinity for a
-    # dead slot); ``live`` is False for removed particles. The caller's particles map to
-    # their slots through ``slot``. Pairs ``(i, j)`` are int32, each unordered pair once.
+    # dead slot: a removed particle's). The caller's particles map to their slots through
+    # ``slot``, their ids to their index through ``index``. Pairs ``(i, j)`` are int32, each
+    # unordered pair once.
 
     def _rebuild(self, x: np.ndarray, ids: np.ndarray) -> None:
         n = len(x)
@@ -136,22 +138,17 @@ class NonlocalAverage:
 
         Dead slots move to infinity: the weight pass drops their pairs, whatever their history.
         """
-        self._live = np.zeros(len(self._slot_ids), dtype=bool)
-        self._live[slot] = True
-        self._x_slot[~self._live] = np.inf
-        self._slot, self._ids = slot, ids.copy()
-        order = np.argsort(ids, kind="stable")
-        self._sorted_ids, self._sorted_slots = ids[order], slot[order]
+        live = np.zeros(len(self._slot_ids), dtype=bool)
+        live[slot] = True
+        self._x_slot[~live] = np.inf
+        self._slot, self._ids, self._index = slot, ids.copy(), IdIndex(ids)
         n = len(self._slot_ids)
         self._identity = len(slot) == n and np.array_equal(slot, np.arange(n))
 
     def _slots_of(self, ids: np.ndarray) -> np.ndarray:
         """Live slot of each of ``ids``, -1 for particles not known (or removed) since."""
-        if len(self._sorted_ids) == 0:
-            return np.full(len(ids), -1, dtype=np.intp)
-        k = np.minimum(np.searchsorted(self._sorted_ids, ids), len(self._sorted_ids) - 1)
-        slot = self._sorted_slots[k]
-        return np.where((self._sorted_ids[k] == ids) & self._live[slot], slot, -1)
+        at = self._index(ids)
+        return np.where(at >= 0, self._slot[at], -1) if len(self._slot) else at
 
     def _add_slots(self, ids: np.ndarray, x: np.ndarray) -> None:
         self._slot_ids = np.r_[self._slot_ids, ids]

@@ -16,7 +16,7 @@ from mpi4py import MPI
 
 from dolfin_mpm.grid import Grid
 from dolfin_mpm.locate import locate
-from dolfin_mpm.particles import Particles
+from dolfin_mpm.particles import IdIndex, Particles
 
 __all__ = ["DistributedAverage", "Halo", "exchange", "migrate"]
 
@@ -183,7 +183,7 @@ class Halo:
     def _built(self, x: np.ndarray, ids: np.ndarray, send: list[np.ndarray]) -> None:
         """Keep the build: particles ``x`` and ``ids`` of this rank, ``send`` the indices per rank."""
         self.x_built, self.ids_built, self.send_built = x.copy(), ids.copy(), send
-        self._order = np.argsort(ids, kind="stable")
+        self._index_built = IdIndex(ids)
         self._ids, self._index, self.send = self.ids_built, None, send  # now: the build's particles
 
     def follow(self, x: np.ndarray, ids: np.ndarray, limit: float) -> bool:
@@ -195,12 +195,8 @@ class Halo:
         """
         index, arrived = self._index, False  # index: each particle's place at the build
         if not (ids is self._ids or np.array_equal(ids, self._ids)):
-            if len(self.ids_built) == 0:
-                index, arrived = np.zeros(0, dtype=np.intp), len(ids) > 0
-            else:
-                k = np.minimum(np.searchsorted(self.ids_built, ids, sorter=self._order), len(self._order) - 1)
-                index = self._order[k]
-                arrived = not np.array_equal(self.ids_built[index], ids)
+            index = self._index_built(ids)
+            arrived = bool(np.any(index < 0))
         moved = 0.0
         if not arrived and len(ids):
             x_then = self.x_built if index is None else self.x_built[index]
