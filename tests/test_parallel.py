@@ -144,7 +144,7 @@ def test_silo_on_all_ranks_equals_the_serial_run(strips):
     """Strips of equal fill; DOLFINx's partition, across which the particles fall."""
     parallel, serial = silo_run(comm, strips=strips), serial_silo_run()
     assert parallel["discharged"] > 0.0
-    if strips:  # the flow is symmetric: (almost) no particle crosses the axis
+    if strips and comm.size == 2:  # cut at the axis of a symmetric flow: (almost) no crossing
         assert parallel["migrated"] < 0.01 * parallel["particles"]
     else:
         assert comm.size == 1 or parallel["migrated"] > 0
