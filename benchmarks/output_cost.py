@@ -1,6 +1,6 @@
 """Cost of the XDMF/HDF5 output against the step it interrupts: gathering to rank 0 or not.
 
-The output gathers every rank's particles to rank 0, which alone writes (`dolfin_mpm.io`). This
+The output gathers every rank's particles to rank 0, which alone writes (`dolfin_mpm.io.xdmf`). This
 times one `Output.write` of the silo (``--h``, 2 mm: ~1.2e5 particles; particles and grid) on
 as many ranks as the script is started with, beside one explicit step, and reports how many
 steps one output costs. With h5py built for MPI it also times the alternative, each rank
@@ -84,7 +84,7 @@ def main():
     }
     if h5py.get_config().mpi:
         P = solver.particles
-        arrays = {"x": P.x, **dm.io.particle_fields(P)}  # what the gathered output writes
+        arrays = {"x": P.x, **dm.io.xdmf.particle_fields(P)}  # what the gathered output writes
         result["collective_particle_write_s"] = timed(
             comm, lambda: collective_write(comm, folder / "collective.h5", arrays), args.writes
         )

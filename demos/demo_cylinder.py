@@ -38,7 +38,7 @@ from mpi4py import MPI
 from scipy.optimize import brentq
 
 from dolfin_mpm.fe import ConvergenceError, QuasiStatic
-from dolfin_mpm.plotting import figure
+from dolfin_mpm.post.plotting import figure
 
 A, B = 0.1, 0.2  # inner and outer radius [m]
 STEEL = dm.VonMises(E=210e9, nu=0.3, rho=7850.0, sigma_y=240e6)

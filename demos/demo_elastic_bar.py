@@ -23,7 +23,7 @@ import numpy as np
 from dolfinx import mesh
 from mpi4py import MPI
 
-from dolfin_mpm.plotting import figure
+from dolfin_mpm.post.plotting import figure
 
 
 def run(cells=30, periods=5.0, scheme="MUSL", output=None, plot=True, progress=True):

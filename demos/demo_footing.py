@@ -36,7 +36,7 @@ from dolfinx import mesh
 from mpi4py import MPI
 
 from dolfin_mpm.fe import ConvergenceError, QuasiStatic
-from dolfin_mpm.plotting import figure
+from dolfin_mpm.post.plotting import figure
 
 B, L = 1.0, 5.0  # footing width, size of the half model [m]
 C, E, NU = 100e3, 100e6, 0.3  # cohesion [Pa], soil stiffness

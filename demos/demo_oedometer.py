@@ -26,7 +26,7 @@ from dolfinx import mesh
 from mpi4py import MPI
 
 from dolfin_mpm.fe import QuasiStatic
-from dolfin_mpm.plotting import figure
+from dolfin_mpm.post.plotting import figure
 
 SOIL = dm.DruckerPragerViscoplastic(E=10e6, nu=0.3, rho=1.0, phi=20.0, gamma=np.inf, c=10e3)
 K0 = SOIL.nu / (1 - SOIL.nu)

@@ -34,8 +34,8 @@ import numpy as np
 from dolfinx import mesh
 from mpi4py import MPI
 
-from dolfin_mpm.measure import bin_sums, fwhm, rise_width
-from dolfin_mpm.plotting import figure
+from dolfin_mpm.post.measure import bin_sums, fwhm, rise_width
+from dolfin_mpm.post.plotting import figure
 
 H = 0.02  # layer height and width [m]
 SAND = {"E": 1e6, "nu": 0.3, "rho": 1500.0, "phi": 30.0, "gamma": 1e3, "N": 1.0}  # the paper's

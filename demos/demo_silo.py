@@ -36,8 +36,8 @@ import dolfin_mpm as dm  # import first: it loads DOLFINx's libraries
 import numpy as np
 from mpi4py import MPI
 
-from dolfin_mpm.measure import bin_sums, fwhm, rise_width
-from dolfin_mpm.plotting import figure
+from dolfin_mpm.post.measure import bin_sums, fwhm, rise_width
+from dolfin_mpm.post.plotting import figure
 
 SAND = {"E": 1e6, "nu": 0.3, "rho": 1500.0, "phi": 30.0, "gamma": 1e3, "N": 1.0}  # the paper's
 G = 9.81

@@ -1,39 +1,61 @@
 """dolfin_mpm: the material point method for large-strain granular flow on DOLFINx.
 
 Import this package before ``dolfinx`` or ``petsc4py``: with the PyPI build of DOLFINx its
-libraries must be loaded first (done in :mod:`dolfin_mpm.compat`).
+libraries must be loaded first, which this import does. The names below are loaded when first
+used, so that ``dolfin_mpm.materials`` imports with numpy alone.
 """
 
-from dolfin_mpm import compat, partition
-from dolfin_mpm.boundary import FixedBC, FrictionalWall, SlipBC, VelocityBC
-from dolfin_mpm.grid import Grid
-from dolfin_mpm.io import Output
-from dolfin_mpm.materials import DruckerPragerViscoplastic, LinearElastic, MohrCoulombDruckerPrager, VonMises
-from dolfin_mpm.nonlocal_average import NonlocalAverage
-from dolfin_mpm.particles import Particles, Sink
-from dolfin_mpm.seeding import geostatic_stress, seed
-from dolfin_mpm.solver import SimulationError, Solver
+import importlib
+
+try:  # The PyPI wheels load their MPI/PETSc libraries on this import.
+    import dolfinx_solver  # noqa: F401
+except ImportError:
+    pass
 
 __version__ = "0.1.0"
 
-__all__ = [
-    "DruckerPragerViscoplastic",
-    "FixedBC",
-    "FrictionalWall",
-    "Grid",
-    "LinearElastic",
-    "MohrCoulombDruckerPrager",
-    "NonlocalAverage",
-    "Output",
-    "Particles",
-    "SimulationError",
-    "Sink",
-    "SlipBC",
-    "Solver",
-    "VelocityBC",
-    "VonMises",
-    "compat",
-    "geostatic_stress",
-    "partition",
-    "seed",
-]
+#: Public name -> the module that defines it.
+_PUBLIC = {
+    "DruckerPragerViscoplastic": "dolfin_mpm.materials",
+    "FixedBC": "dolfin_mpm.core.boundary",
+    "FrictionalWall": "dolfin_mpm.core.boundary",
+    "Grid": "dolfin_mpm.core.grid",
+    "LinearElastic": "dolfin_mpm.materials",
+    "MohrCoulombDruckerPrager": "dolfin_mpm.materials",
+    "NonlocalAverage": "dolfin_mpm.averaging",
+    "Output": "dolfin_mpm.io.xdmf",
+    "Particles": "dolfin_mpm.core.particles",
+    "SimulationError": "dolfin_mpm.core.solver",
+    "Sink": "dolfin_mpm.core.particles",
+    "SlipBC": "dolfin_mpm.core.boundary",
+    "Solver": "dolfin_mpm.core.solver",
+    "VelocityBC": "dolfin_mpm.core.boundary",
+    "VonMises": "dolfin_mpm.materials",
+    "geostatic_stress": "dolfin_mpm.core.seeding",
+    "seed": "dolfin_mpm.core.seeding",
+}
+_MODULES = {
+    "compat": "dolfin_mpm.core.compat",
+    "partition": "dolfin_mpm.parallel.partition",
+    **{
+        name: f"dolfin_mpm.{name}"
+        for name in ("app", "averaging", "core", "fe", "io", "materials", "parallel", "post")
+    },
+}
+
+__all__ = sorted([*_PUBLIC, *_MODULES])
+
+
+def __getattr__(name: str):
+    if name in _PUBLIC:
+        value = getattr(importlib.import_module(_PUBLIC[name]), name)
+    elif name in _MODULES:
+        value = importlib.import_module(_MODULES[name])
+    else:
+        raise AttributeError(f"module 'dolfin_mpm' has no attribute {name!r}")
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *__all__])

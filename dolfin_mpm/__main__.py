@@ -2,6 +2,6 @@
 
 import sys
 
-from dolfin_mpm.cli import main
+from dolfin_mpm.app.cli import main
 
 sys.exit(main())

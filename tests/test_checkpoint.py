@@ -17,9 +17,11 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from dolfin_mpm import NonlocalAverage, checkpoint, scenario
-from dolfin_mpm.cli import main
-from dolfin_mpm.progress import Progress
+from dolfin_mpm import NonlocalAverage
+from dolfin_mpm.app import scenario
+from dolfin_mpm.app.cli import main
+from dolfin_mpm.app.progress import Progress
+from dolfin_mpm.io import checkpoint
 
 # Sand falls through a plate that opens at t = 5 ms into a sink: non-local averaging with
 # kept pairs, particles leaving, an event; about 330 steps.

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from dolfin_mpm.materials import DruckerPragerViscoplastic, LinearElastic
-from dolfin_mpm.tensor import invariants
+from dolfin_mpm.materials.tensor import invariants
 
 PAPER = {"E": 1e6, "nu": 0.3, "rho": 1500.0, "phi": 30.0, "gamma": 1e3}
 P0 = 2000.0  # initial isotropic pressure [Pa]

@@ -9,9 +9,9 @@ from dolfinx import fem, mesh
 from mpi4py import MPI
 
 import dolfin_mpm as dm
-from dolfin_mpm.locate import basis_at, locate
-from dolfin_mpm.tensor import component_first, particle_first
-from dolfin_mpm.transfer import gradient, internal_force, interpolate, scatter, volume_ratio
+from dolfin_mpm.core.locate import basis_at, locate
+from dolfin_mpm.core.transfer import gradient, internal_force, interpolate, scatter, volume_ratio
+from dolfin_mpm.materials.tensor import component_first, particle_first
 
 EPS = np.finfo(np.float64).eps
 
@@ -88,7 +88,7 @@ def test_locate_cheap_path_and_search(unit_grid):
     fresh, _ = locate(unit_grid, x2, np.full(len(x), -1, np.int32))
     outside = (x2[:, 0] > 1) | (x2[:, 1] < 0)
     assert np.all(moved[outside] == -1)
-    lam = dm.locate.barycentric(unit_grid, x2[~outside], fresh[~outside])
+    lam = dm.core.locate.barycentric(unit_grid, x2[~outside], fresh[~outside])
     assert np.all(lam.min(axis=0) >= -1e-12) and np.all(N[:, ~outside].min(axis=0) >= -1e-12)
 
 

@@ -10,7 +10,7 @@ from conftest import rectangle
 from mpi4py import MPI
 
 import dolfin_mpm as dm
-from dolfin_mpm.tensor import invariants
+from dolfin_mpm.materials.tensor import invariants
 
 
 def small_run(tmp_path, t_end, nan_at=None):

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from dolfin_mpm.materials import LinearElastic
-from dolfin_mpm.tensor import invariants
+from dolfin_mpm.materials.tensor import invariants
 
 
 def simple_shear(material, gamma_end, steps, gamma_rate=1.0):

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from dolfin_mpm.measure import bin_sums, fwhm, rise_width
+from dolfin_mpm.post.measure import bin_sums, fwhm, rise_width
 
 
 def test_fwhm_of_a_gaussian():

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from dolfin_mpm.nonlocal_average import WEIGHTS, NonlocalAverage, _search
+from dolfin_mpm.averaging.nonlocal_average import WEIGHTS, NonlocalAverage, _search
 
 #: Weights in double precision from the positions; fields here lie in [0, 1].
 ATOL = 1e-12

@@ -52,7 +52,7 @@ def test_fixed_point_converges_to_the_non_local_law():
     assert np.allclose(avg(de), de_bar, rtol=1e-12, atol=0)
     # ... no tension, no point stronger than its own law q <= m p (1 + 2/3 e_vp / gamma) ...
     assert np.all(np.isfinite(P.sigma))
-    p, q = dm.tensor.invariants(P.sigma)
+    p, q = dm.materials.tensor.invariants(P.sigma)
     strength = mat.m * p * (1.0 + (2.0 / 3.0) * P.state["eps_vp_rate"] / mat.gamma)
     assert np.all(p >= 0.0) and np.all(q <= strength * (1 + 1e-9) + 1e-9)
     # ... and points dragged into flow by their neighbours sit below it.

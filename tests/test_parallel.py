@@ -18,9 +18,10 @@ from scipy.spatial import cKDTree
 from test_checkpoint import SCENARIO
 from test_demos import load
 
-from dolfin_mpm.cli import main
-from dolfin_mpm.locate import locate
-from dolfin_mpm.parallel import DistributedAverage, migrate
+from dolfin_mpm.app.cli import main
+from dolfin_mpm.core.locate import locate
+from dolfin_mpm.parallel.halo import DistributedAverage
+from dolfin_mpm.parallel.migration import migrate
 
 comm = MPI.COMM_WORLD
 

@@ -34,7 +34,7 @@ def test_keep_take_extend_keep_fields_aligned():
 def test_stress_written_component_first_stays_so():
     """The kernels write the stress component-first; removing, taking and appending particles
     keeps that layout (a transposed copy would cost one at every use)."""
-    from dolfin_mpm.tensor import component_first, particle_first
+    from dolfin_mpm.materials.tensor import component_first, particle_first
 
     P, Q = make(6), make(3, offset=6)
     values = np.arange(9 * 9.0).reshape(9, 3, 3)

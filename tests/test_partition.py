@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from dolfin_mpm.partition import bisection, destinations
+from dolfin_mpm.parallel.partition import bisection, destinations
 
 
 @pytest.mark.parametrize("nparts", [2, 3, 4, 7])

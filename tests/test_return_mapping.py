@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from dolfin_mpm.materials import DruckerPragerViscoplastic, VonMises
-from dolfin_mpm.tensor import from_mandel, invariants, to_mandel
+from dolfin_mpm.materials.tensor import from_mandel, invariants, to_mandel
 
 ELASTIC = {"E": 10e6, "nu": 0.3, "rho": 2000.0}
 RNG = np.random.default_rng(7)

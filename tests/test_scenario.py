@@ -14,9 +14,9 @@ import pytest
 from mpi4py import MPI
 from test_demos import load
 
-from dolfin_mpm import scenario
-from dolfin_mpm.cli import main
-from dolfin_mpm.runner import Runner
+from dolfin_mpm.app import scenario
+from dolfin_mpm.app.cli import main
+from dolfin_mpm.app.runner import Runner
 
 ROOT = Path(__file__).parents[1]
 DEMOS = ROOT / "demos"

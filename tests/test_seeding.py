@@ -5,7 +5,7 @@ from dolfinx import mesh
 from mpi4py import MPI
 
 import dolfin_mpm as dm
-from dolfin_mpm.seeding import reference_points
+from dolfin_mpm.core.seeding import reference_points
 
 
 @pytest.mark.parametrize(

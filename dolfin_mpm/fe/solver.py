@@ -24,8 +24,8 @@ from dolfinx import fem, mesh
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from dolfin_mpm import compat
-from dolfin_mpm.tensor import from_mandel, to_mandel
+from dolfin_mpm.core import compat
+from dolfin_mpm.materials.tensor import from_mandel, to_mandel
 
 __all__ = ["ConvergenceError", "QuasiStatic", "Step"]
 

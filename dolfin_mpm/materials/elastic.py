@@ -15,7 +15,7 @@ import numpy as np
 
 from dolfin_mpm import native
 from dolfin_mpm.materials.base import Material, check_range
-from dolfin_mpm.tensor import component_first, deviator, particle_first
+from dolfin_mpm.materials.tensor import component_first, deviator, particle_first
 
 __all__ = ["LinearElastic"]
 

@@ -35,7 +35,7 @@ import numpy as np
 
 from dolfin_mpm.materials.base import check_range
 from dolfin_mpm.materials.radial_return import IsochoricPlastic, Trial
-from dolfin_mpm.tensor import particle_first, to_mandel
+from dolfin_mpm.materials.tensor import particle_first, to_mandel
 
 __all__ = ["MohrCoulombDruckerPrager"]
 

@@ -23,7 +23,7 @@ import numpy as np
 
 from dolfin_mpm import native
 from dolfin_mpm.materials.elastic import LinearElastic
-from dolfin_mpm.tensor import particle_first, to_mandel
+from dolfin_mpm.materials.tensor import particle_first, to_mandel
 
 __all__ = ["IsochoricPlastic", "Trial"]
 

@@ -12,8 +12,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from dolfin_mpm import compat
-from dolfin_mpm.tensor import invariants
+from dolfin_mpm.core import compat
+from dolfin_mpm.materials.tensor import invariants
 
 __all__ = ["Output", "XDMFSeries", "particle_fields"]
 

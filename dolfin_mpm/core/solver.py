@@ -13,16 +13,17 @@ from contextlib import contextmanager
 import numpy as np
 from mpi4py import MPI
 
-from dolfin_mpm.anderson import Anderson
-from dolfin_mpm.boundary import BoundaryCondition
-from dolfin_mpm.grid import Grid
-from dolfin_mpm.locate import Basis, basis_at, locate
+from dolfin_mpm.app.progress import Progress
+from dolfin_mpm.averaging.nonlocal_average import NonlocalAverage
+from dolfin_mpm.core.anderson import Anderson
+from dolfin_mpm.core.boundary import BoundaryCondition
+from dolfin_mpm.core.grid import Grid
+from dolfin_mpm.core.locate import Basis, basis_at, locate
+from dolfin_mpm.core.particles import Particles, Sink
+from dolfin_mpm.core.transfer import gradient, internal_force, interpolate, scatter, volume_ratio
 from dolfin_mpm.materials import DruckerPragerViscoplastic, Material, check_range
-from dolfin_mpm.nonlocal_average import NonlocalAverage
-from dolfin_mpm.parallel import DistributedAverage, migrate
-from dolfin_mpm.particles import Particles, Sink
-from dolfin_mpm.progress import Progress
-from dolfin_mpm.transfer import gradient, internal_force, interpolate, scatter, volume_ratio
+from dolfin_mpm.parallel.halo import DistributedAverage
+from dolfin_mpm.parallel.migration import migrate
 
 __all__ = ["SimulationError", "Solver"]
 
@@ -407,7 +408,7 @@ class Solver:
     def run(self, t_end: float, output=None, output_interval: float | None = None, progress: bool = True):
         """Step until ``t_end`` [s], writing ``output`` every ``output_interval`` [s].
 
-        ``output`` is anything with ``write(solver)`` (see :mod:`dolfin_mpm.io`); it is also
+        ``output`` is anything with ``write(solver)`` (see :mod:`dolfin_mpm.io.xdmf`); it is also
         written at the start and the end. A :class:`SimulationError` stops the run; what was
         written before stays readable. ``progress`` (the same on every rank) shows time,
         steps/s, ETA and the particle count on rank 0.

@@ -19,7 +19,7 @@ import scipy.sparse as sp
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from dolfin_mpm import compat
+from dolfin_mpm.core import compat
 
 __all__ = ["bisection", "create_box", "create_rectangle", "destinations"]
 

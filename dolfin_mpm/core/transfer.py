@@ -1,7 +1,7 @@
 """Particle-to-grid and grid-to-particle transfers through the P1 basis.
 
 Nodal arrays are ``shape=(num_nodes, k)``; per-particle arrays have the particle axis first;
-the basis is component-first (:class:`dolfin_mpm.locate.Basis`). The loops over the particles
+the basis is component-first (:class:`dolfin_mpm.core.locate.Basis`). The loops over the particles
 are compiled C (``transfer.c``), one pass per call: a particle's few nodes and components are
 gathered or scattered where numpy built a sparse matrix per step and streamed each component
 through it separately.
@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from dolfin_mpm import native
-from dolfin_mpm.locate import Basis
-from dolfin_mpm.tensor import component_first, particle_first
+from dolfin_mpm.core.locate import Basis
+from dolfin_mpm.materials.tensor import component_first, particle_first
 
 __all__ = ["gradient", "internal_force", "interpolate", "scatter", "volume_ratio"]
 

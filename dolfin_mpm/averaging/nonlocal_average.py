@@ -30,8 +30,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from dolfin_mpm import native
+from dolfin_mpm.core.particles import IdIndex
 from dolfin_mpm.materials.base import check_range
-from dolfin_mpm.particles import IdIndex
 
 __all__ = ["WEIGHTS", "NonlocalAverage"]
 

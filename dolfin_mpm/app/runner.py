@@ -18,11 +18,11 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from dolfin_mpm import checkpoint
-from dolfin_mpm.figures import field_values, plot_curves, plot_particles
-from dolfin_mpm.io import Output
-from dolfin_mpm.progress import Progress
-from dolfin_mpm.scenario import Simulation
+from dolfin_mpm.app.progress import Progress
+from dolfin_mpm.app.scenario import Simulation
+from dolfin_mpm.io import checkpoint
+from dolfin_mpm.io.xdmf import Output
+from dolfin_mpm.post.figures import field_values, plot_curves, plot_particles
 
 __all__ = ["HISTORY", "Interrupted", "RunError", "Runner"]
 

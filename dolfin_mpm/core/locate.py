@@ -8,8 +8,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dolfin_mpm import compat
-from dolfin_mpm.grid import Grid
+from dolfin_mpm.core import compat
+from dolfin_mpm.core.grid import Grid
 
 __all__ = ["Basis", "barycentric", "basis_at", "locate"]
 

@@ -5,7 +5,7 @@ from collections.abc import Callable
 import numpy as np
 from dolfinx import fem
 
-from dolfin_mpm import compat
+from dolfin_mpm.core import compat
 
 __all__ = ["Grid"]
 

@@ -5,7 +5,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from dolfin_mpm.tensor import component_first, particle_first
+from dolfin_mpm.materials.tensor import component_first, particle_first
 
 __all__ = ["IdIndex", "Particles", "Sink"]
 

@@ -4,11 +4,11 @@ from collections.abc import Callable
 
 import numpy as np
 
-from dolfin_mpm import compat
-from dolfin_mpm.grid import Grid
-from dolfin_mpm.locate import locate
+from dolfin_mpm.core import compat
+from dolfin_mpm.core.grid import Grid
+from dolfin_mpm.core.locate import locate
+from dolfin_mpm.core.particles import Particles
 from dolfin_mpm.materials.base import Material
-from dolfin_mpm.particles import Particles
 
 __all__ = ["geostatic_stress", "reference_points", "seed"]
 

@@ -17,7 +17,7 @@ import h5py
 import numpy as np
 from mpi4py import MPI
 
-from dolfin_mpm.particles import Particles
+from dolfin_mpm.core.particles import Particles
 
 __all__ = ["FORMAT", "CheckpointError", "read", "restore", "write"]
 
@@ -66,7 +66,7 @@ def write(path, sim, history: dict[str, np.ndarray]) -> None:
     Args:
         path: the checkpoint file; a file of that name is replaced only once the new one is
             complete on disk.
-        sim: the :class:`~dolfin_mpm.scenario.Simulation`.
+        sim: the :class:`~dolfin_mpm.app.scenario.Simulation`.
         history: recorded columns by name, each ``shape=(records,)``.
 
     Raises:

@@ -16,9 +16,10 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from dolfin_mpm import checkpoint, scenario
-from dolfin_mpm.runner import CHECKPOINT, Interrupted, RunError, Runner, print_root, write_run_info
-from dolfin_mpm.solver import SimulationError
+from dolfin_mpm.app import scenario
+from dolfin_mpm.app.runner import CHECKPOINT, Interrupted, RunError, Runner, print_root, write_run_info
+from dolfin_mpm.core.solver import SimulationError
+from dolfin_mpm.io import checkpoint
 
 __all__ = ["main"]
 

@@ -23,15 +23,16 @@ except ModuleNotFoundError:  # Python < 3.11
 
 from mpi4py import MPI
 
-from dolfin_mpm import compat, partition
-from dolfin_mpm.boundary import BoundaryCondition, FixedBC, FrictionalWall, SlipBC, VelocityBC
-from dolfin_mpm.grid import Grid
+from dolfin_mpm.app.regions import Expression, Region
+from dolfin_mpm.averaging.nonlocal_average import WEIGHTS, NonlocalAverage
+from dolfin_mpm.core import compat
+from dolfin_mpm.core.boundary import BoundaryCondition, FixedBC, FrictionalWall, SlipBC, VelocityBC
+from dolfin_mpm.core.grid import Grid
+from dolfin_mpm.core.particles import Sink
+from dolfin_mpm.core.seeding import geostatic_stress, reference_points, seed
+from dolfin_mpm.core.solver import Solver
 from dolfin_mpm.materials import DruckerPragerViscoplastic, LinearElastic
-from dolfin_mpm.nonlocal_average import WEIGHTS, NonlocalAverage
-from dolfin_mpm.particles import Sink
-from dolfin_mpm.regions import Expression, Region
-from dolfin_mpm.seeding import geostatic_stress, reference_points, seed
-from dolfin_mpm.solver import Solver
+from dolfin_mpm.parallel import partition
 
 __all__ = ["MODELS", "ScenarioError", "Simulation", "apply_overrides", "build", "load", "parse", "validate"]
 

@@ -193,7 +193,7 @@ def create_mesh(comm, cells: np.ndarray, x: np.ndarray, destinations=None):
     may sit on one rank, the others passing empty arrays of those widths. DOLFINx partitions
     the cells, unless ``destinations`` (on the rank holding all cells; ``None`` on the others)
     gives each cell's ranks, owner first, as ``(data, offsets)`` (see
-    :func:`dolfin_mpm.partition.destinations`).
+    :func:`dolfin_mpm.parallel.partition.destinations`).
     """
     gdim = x.shape[1]
     cell_name = _MESHIO_CELLS[gdim][1]

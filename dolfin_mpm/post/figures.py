@@ -4,8 +4,8 @@ from pathlib import Path
 
 import numpy as np
 
-from dolfin_mpm.plotting import figure
-from dolfin_mpm.tensor import invariants
+from dolfin_mpm.materials.tensor import invariants
+from dolfin_mpm.post.plotting import figure
 
 __all__ = ["field_values", "plot_curves", "plot_particles"]
 

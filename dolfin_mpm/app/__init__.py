@@ -1,0 +1,1 @@
+"""Scenario files and the command line: validation, the run driver, progress, regions."""

@@ -1,0 +1,1 @@
+"""What a run writes: XDMF series for ParaView and checkpoints."""

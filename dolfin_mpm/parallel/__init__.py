@@ -1,0 +1,1 @@
+"""Particles on DOLFINx's partition: global ids, migration, partitions that balance particles, halos."""

@@ -1,0 +1,1 @@
+"""After a run: band widths and profiles, figures."""
