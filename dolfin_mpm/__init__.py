@@ -2,7 +2,7 @@
 
 Import this package before ``dolfinx`` or ``petsc4py``: with the PyPI build of DOLFINx its
 libraries must be loaded first, which this import does. The names below are loaded when first
-used, so that ``dolfin_mpm.materials`` imports with numpy alone.
+used, so that ``dolfin_mpm.materials`` (imported here) needs numpy alone.
 """
 
 import importlib
@@ -12,16 +12,16 @@ try:  # The PyPI wheels load their MPI/PETSc libraries on this import.
 except ImportError:
     pass
 
+from dolfin_mpm import materials  # numpy only
+from dolfin_mpm.materials import *  # noqa: F403  (the constitutive models)
+
 __version__ = "0.1.0"
 
 #: Public name -> the module that defines it.
 _PUBLIC = {
-    "DruckerPragerViscoplastic": "dolfin_mpm.materials",
     "FixedBC": "dolfin_mpm.core.boundary",
     "FrictionalWall": "dolfin_mpm.core.boundary",
     "Grid": "dolfin_mpm.core.grid",
-    "LinearElastic": "dolfin_mpm.materials",
-    "MohrCoulombDruckerPrager": "dolfin_mpm.materials",
     "NonlocalAverage": "dolfin_mpm.averaging",
     "Output": "dolfin_mpm.io.xdmf",
     "Particles": "dolfin_mpm.core.particles",
@@ -30,7 +30,6 @@ _PUBLIC = {
     "SlipBC": "dolfin_mpm.core.boundary",
     "Solver": "dolfin_mpm.core.solver",
     "VelocityBC": "dolfin_mpm.core.boundary",
-    "VonMises": "dolfin_mpm.materials",
     "geostatic_stress": "dolfin_mpm.core.seeding",
     "seed": "dolfin_mpm.core.seeding",
 }
@@ -43,7 +42,7 @@ _MODULES = {
     },
 }
 
-__all__ = sorted([*_PUBLIC, *_MODULES])
+__all__ = sorted([*_PUBLIC, *_MODULES, *materials.__all__])
 
 
 def __getattr__(name: str):

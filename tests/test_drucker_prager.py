@@ -88,7 +88,7 @@ def test_q_never_exceeds_trial_nor_changes_sign():
     sigma = 0.5 * (sigma + np.swapaxes(sigma, 1, 2))
     L = rng.normal(scale=5.0, size=(n, 2, 2))
     trial = mat.trial(sigma, L, 1e-4)
-    de = mat.increment(trial, 1e-4)
+    de = mat.increment(trial, {}, 1e-4)
     assert np.all(de >= 0.0)
     p, q = invariants(mat.stress(trial, de))
     assert np.all(q <= trial.q * (1 + 1e-12)) and np.all(q >= 0.0)

@@ -10,6 +10,7 @@ from mpi4py import MPI
 
 import dolfin_mpm as dm
 from dolfin_mpm.core.locate import basis_at, locate
+from dolfin_mpm.core.step import p2g
 from dolfin_mpm.core.transfer import gradient, internal_force, interpolate, scatter, volume_ratio
 from dolfin_mpm.materials.tensor import component_first, particle_first
 
@@ -98,7 +99,7 @@ def test_lumped_mass_equals_consistent_mass_row_sum():
     P = dm.seed(grid, dm.LinearElastic(1e6, 0.3, rho), ppc=4)
     solver = dm.Solver(grid, P, dm.LinearElastic(1e6, 0.3, rho))
     cells, N = locate(grid, P.x, P.cell)
-    solver._p2g(basis_at(grid, cells, N))
+    p2g(solver.model, P, basis_at(grid, cells, N))
 
     u, v = ufl.TrialFunction(grid.Q), ufl.TestFunction(grid.Q)
     M = dolfinx.fem.petsc.assemble_matrix(fem.form(rho * u * v * ufl.dx))
@@ -121,7 +122,7 @@ def test_transfers_conserve_mass_and_momentum(unit_grid, flip):
     m0, p0 = solver.total_mass(), solver.total_momentum()
     cells, N = locate(unit_grid, P.x, P.cell)
     basis = basis_at(unit_grid, cells, N)
-    solver._p2g(basis)
+    p2g(solver.model, P, basis)
     owned = slice(0, unit_grid.num_owned_nodes)
     m_grid = unit_grid.mass.x.array[owned].sum()
     p_grid = unit_grid.momentum.x.array.reshape(-1, 2)[owned].sum(axis=0)

@@ -75,13 +75,14 @@ def test_rotation_is_objective():
     assert np.allclose(np.linalg.eigvalsh(S2), np.linalg.eigvalsh(S), atol=1e-12 * np.abs(S).max())
 
 
-def test_predictor_splits_the_update():
+def test_trial_splits_the_update():
     rng = np.random.default_rng(2)
     mat = LinearElastic(E=10.0, nu=0.25, rho=1.0)
     L = rng.normal(size=(30, 3, 3))
     S = rng.normal(size=(30, 3, 3))
     S = S + np.swapaxes(S, 1, 2)
-    p, s, q = mat.predictor(S, L, 0.1)
+    trial = mat.trial(S, L, 0.1)
+    p, s, q = trial.p, trial.s, trial.q
     new = mat.update(S, L, 0.1, {})
     p_ref, q_ref = invariants(new)
     assert np.allclose(p, p_ref, rtol=1e-14, atol=1e-14) and np.allclose(q, q_ref, rtol=1e-13)

@@ -1,5 +1,6 @@
 """Scenario files: validation that reports every problem with its TOML path, building, the CLI."""
 
+import dataclasses
 import math
 import subprocess
 import sys
@@ -17,6 +18,7 @@ from test_demos import load
 from dolfin_mpm.app import scenario
 from dolfin_mpm.app.cli import main
 from dolfin_mpm.app.runner import Runner
+from dolfin_mpm.materials import DruckerPragerViscoplastic
 
 ROOT = Path(__file__).parents[1]
 DEMOS = ROOT / "demos"
@@ -78,6 +80,26 @@ def test_a_bad_material_does_not_also_fail_the_figure_field():
     with pytest.raises(scenario.ScenarioError) as info:
         scenario.load(DEMOS / "silo.toml", ["materials.sand.E=-1"])
     assert str(info.value) == "materials.sand.E: must be > 0 Pa, got -1"  # and nothing else
+
+
+def test_material_parameters_are_the_classes_ranged_fields():
+    """The scenario's table of each model is read off its class: the same Range objects, in
+    field order, with the fields' defaults; validation reports the class's range."""
+    for cls, params in scenario.MODELS.values():
+        ranged = [f for f in dataclasses.fields(cls) if "range" in f.metadata]
+        assert list(params) == [f.name for f in ranged]
+        for f in ranged:
+            assert params[f.name].range is f.metadata["range"]
+            assert params[f.name].required == (f.default is dataclasses.MISSING)
+            assert params[f.name].required or params[f.name].default == f.default
+    cls, params = scenario.MODELS["drucker_prager"]
+    assert cls is DruckerPragerViscoplastic and list(params) == ["E", "nu", "rho", "phi", "gamma", "N", "c"]
+    assert list(scenario.MODELS["elastic"][1]) == ["E", "nu", "rho"]
+    gamma = {f.name: f for f in dataclasses.fields(cls)}["gamma"].metadata["range"]
+    with pytest.raises(scenario.ScenarioError) as info:
+        scenario.load(DEMOS / "silo.toml", ["materials.sand.gamma=0"])
+    assert str(info.value) == f"materials.sand.gamma: {gamma.describe()}, got 0"
+    assert gamma.describe() == "must be in (0, inf] 1/s"
 
 
 def test_malformed_toml_gives_line_and_column(tmp_path):

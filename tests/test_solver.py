@@ -155,3 +155,24 @@ def test_block_sliding_on_a_frictional_floor_decelerates_at_mu_g(mu):
         speeds.append(solver.total_momentum()[0] / m)
     deceleration = -np.polyfit(times, speeds, 1)[0]
     assert deceleration == pytest.approx(mu * g, rel=0.03)
+
+
+def test_stage_times_do_not_overlap_and_add_up_to_the_step(monkeypatch):
+    """Each instant of a step is charged to exactly one stage: with a clock that ticks once per
+    reading, the stages sum to the readings after the first, and only known stages appear."""
+    from dolfin_mpm.core import timer
+    from dolfin_mpm.core.step import STAGES
+
+    grid = dm.Grid(rectangle((0, 0), (1, 1), (4, 4)))
+    mat = dm.DruckerPragerViscoplastic(E=1e6, nu=0.3, rho=1500.0, phi=30.0, gamma=1e3)
+    solver = dm.Solver(
+        grid, dm.seed(grid, mat, ppc=4), mat, gravity=(0, -9.81), averaging=dm.NonlocalAverage(0.3)
+    )
+    ticks = iter(range(10**6))
+    monkeypatch.setattr(timer.time, "perf_counter", lambda: float(next(ticks)))
+    solver.step()
+    readings = next(ticks)
+    assert set(solver.timings) <= set(STAGES) and {"neighbours", "averaging", "convergence"} <= set(
+        solver.timings
+    )
+    assert solver.timer.total == readings - 1

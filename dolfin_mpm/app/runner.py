@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from dolfin_mpm.app.progress import Progress
 from dolfin_mpm.app.scenario import Simulation
+from dolfin_mpm.core.progress import Progress
 from dolfin_mpm.io import checkpoint
 from dolfin_mpm.io.xdmf import Output
 from dolfin_mpm.post.figures import field_values, plot_curves, plot_particles
@@ -185,22 +185,14 @@ class Runner:
                     self._output(output)
                     self._snapshot()
                 schedule = [(e["time"], k) for k, e in enumerate(cfg["events"]) if k not in self.sim.applied]
+                actions = [
+                    (steps["interval"], lambda: self._output(output)),
+                    (steps["figure_interval"], self._snapshot),
+                    (steps["checkpoint_interval"], self._checkpoint),
+                    (1, lambda: self._poll(flag)),
+                ]
                 for t_target, event in [*schedule, (cfg["time"]["end"], None)]:
-                    while (t_target - s.time) / s.dt > 1e-9:
-                        s.step()
-                        n = s.step_count
-                        if n % steps["interval"] == 0:
-                            self._output(output)
-                        if n % steps["figure_interval"] == 0:
-                            self._snapshot()
-                        if n % steps["checkpoint_interval"] == 0:
-                            self._checkpoint()
-                        signum, show = self._poll(flag)
-                        if show:
-                            self.progress.show(s.time, s.num_particles(), self.sim.discharged_mass())
-                        if signum:
-                            self._checkpoint()
-                            raise Interrupted(signum)
+                    s.run_until(t_target, actions)
                     if event is not None:
                         self.sim.apply_event(event)
                 self._output(output)
@@ -225,14 +217,23 @@ class Runner:
                     self.comm.Abort(1)
                 raise RunError(message) from None
 
-    def _poll(self, flag: dict) -> tuple[int, bool]:
-        """The signal to stop on and whether to refresh the progress, the same on every rank."""
+    def _poll(self, flag: dict) -> None:
+        """Refresh the progress when due; on a signal, checkpoint and raise :class:`Interrupted`.
+
+        Both decisions are the same on every rank.
+        """
         due = self.progress.due()
-        if self.comm.size == 1:
-            return flag["signum"], due
-        flags = np.empty(2, dtype=np.int64)
-        self.comm.Allreduce(np.array([flag["signum"], int(due)], dtype=np.int64), flags, MPI.MAX)
-        return int(flags[0]), bool(flags[1])
+        signum = flag["signum"]
+        if self.comm.size > 1:
+            flags = np.empty(2, dtype=np.int64)
+            self.comm.Allreduce(np.array([signum, int(due)], dtype=np.int64), flags, MPI.MAX)
+            signum, due = int(flags[0]), bool(flags[1])
+        s = self.sim.solver
+        if due:
+            self.progress.show(s.time, s.num_particles(), self.sim.discharged_mass())
+        if signum:
+            self._checkpoint()
+            raise Interrupted(signum)
 
 
 def write_run_info(folder: Path, scenario_text: str, info: dict) -> None:

@@ -33,56 +33,33 @@ from dolfin_mpm.core.seeding import geostatic_stress, reference_points, seed
 from dolfin_mpm.core.solver import Solver
 from dolfin_mpm.materials import DruckerPragerViscoplastic, LinearElastic
 from dolfin_mpm.parallel import partition
+from dolfin_mpm.params import Range, parameters
 
 __all__ = ["MODELS", "ScenarioError", "Simulation", "apply_overrides", "build", "load", "parse", "validate"]
 
 INF = math.inf
 
 
-@dataclass(frozen=True)
-class _Param:
-    """A number with its allowed interval, unit and default (``None``: required)."""
-
-    low: float
-    high: float
-    unit: str = ""
-    closed: tuple[bool, bool] = (False, False)
-    default: float | None = None
-
-
-_ELASTIC = {
-    "E": _Param(0.0, INF, "Pa"),
-    "nu": _Param(-1.0, 0.5),
-    "rho": _Param(0.0, INF, "kg/m^3"),
-}
-#: Material models by name: class and parameters.
+#: Material models by name: class and its parameters (ranges, units, defaults), as the class
+#: declares them.
 MODELS = {
-    "elastic": (LinearElastic, _ELASTIC),
-    "drucker_prager": (
-        DruckerPragerViscoplastic,
-        {
-            **_ELASTIC,
-            "phi": _Param(0.0, 90.0, "degrees"),
-            "gamma": _Param(0.0, INF, "1/s", (False, True)),
-            "N": _Param(0.0, INF, default=1.0),
-            "c": _Param(0.0, INF, "Pa", (True, False), 0.0),
-        },
-    ),
+    name: (cls, parameters(cls))
+    for name, cls in (("elastic", LinearElastic), ("drucker_prager", DruckerPragerViscoplastic))
 }
 _WALLS = ("fixed", "slip", "frictional", "velocity")
 _DIAGONALS = ("right", "left", "crossed", "right/left", "left/right")
 _SOLVER = {  # name: (kind, default, interval or choices)
     "scheme": ("string", "MUSL", ("MUSL", "USL")),
-    "flip": ("number", 1.0, _Param(0.0, 1.0, closed=(True, True))),
-    "damping": ("number", 0.0, _Param(0.0, 1.0, closed=(True, False))),
-    "courant": ("number", 0.5, _Param(0.0, 1.0, closed=(False, True))),
-    "dt": ("number", None, _Param(0.0, INF, "s")),
-    "mass_tol": ("number", 1e-10, _Param(0.0, 1.0, closed=(True, False))),
-    "fixed_point_tol": ("number", 1e-3, _Param(0.0, INF)),
-    "fixed_point_max_iter": ("integer", 50, _Param(1, INF, closed=(True, False))),
-    "relaxation": ("number", 1.0, _Param(0.0, 1.0, closed=(False, True))),
-    "anderson_depth": ("integer", 5, _Param(0, INF, closed=(True, False))),
-    "extrapolation": ("integer", 2, _Param(0, 2, closed=(True, True))),
+    "flip": ("number", 1.0, Range(0.0, 1.0, closed=(True, True))),
+    "damping": ("number", 0.0, Range(0.0, 1.0, closed=(True, False))),
+    "courant": ("number", 0.5, Range(0.0, 1.0, closed=(False, True))),
+    "dt": ("number", None, Range(0.0, INF, "s")),
+    "mass_tol": ("number", 1e-10, Range(0.0, 1.0, closed=(True, False))),
+    "fixed_point_tol": ("number", 1e-3, Range(0.0, INF)),
+    "fixed_point_max_iter": ("integer", 50, Range(1, INF, closed=(True, False))),
+    "relaxation": ("number", 1.0, Range(0.0, 1.0, closed=(False, True))),
+    "anderson_depth": ("integer", 5, Range(0, INF, closed=(True, False))),
+    "extrapolation": ("integer", 2, Range(0, 2, closed=(True, True))),
 }
 _PARTICLE_FIELDS = ("speed", "p", "q", "mass", "volume")
 
@@ -103,17 +80,6 @@ def _show(value) -> str:
     if isinstance(value, list):
         return "[" + ", ".join(_show(v) for v in value) + "]"
     return repr(value).lower() if isinstance(value, bool) else repr(value)
-
-
-def _interval(p: _Param) -> str:
-    unit = f" {p.unit}" if p.unit else ""
-    if p.high == INF and not p.closed[1]:
-        return f"must be {'>=' if p.closed[0] else '>'} {p.low:g}{unit}"
-    return f"must be in {'[' if p.closed[0] else '('}{p.low:g}, {p.high:g}{']' if p.closed[1] else ')'}{unit}"
-
-
-def _in(p: _Param, v: float) -> bool:
-    return (v >= p.low if p.closed[0] else v > p.low) and (v <= p.high if p.closed[1] else v < p.high)
 
 
 class _Checker:
@@ -159,13 +125,13 @@ class _Checker:
     ):
         """``t[key]`` of ``kind`` (number, integer, string, bool, numbers, strings, vector).
 
-        ``check`` is a :class:`_Param` interval or a tuple of choices; ``size`` the length of a
+        ``check`` is a :class:`~dolfin_mpm.params.Range` or a tuple of choices; ``size`` the length of a
         ``numbers`` array (0: any). Returns ``default`` when missing or bad.
         """
         where = f"{path}.{key}"
         if key not in t:
             if required:
-                self.fail(where, "missing" + (f" ({_interval(check)})" if isinstance(check, _Param) else ""))
+                self.fail(where, "missing" + (f" ({check.describe()})" if isinstance(check, Range) else ""))
             return default
         v = t[key]
         is_num = lambda a: isinstance(a, (int, float)) and not isinstance(a, bool)  # noqa: E731
@@ -187,10 +153,10 @@ class _Checker:
         if not expected[1]:
             self.fail(where, f"must be {expected[0]}, got {_show(v)}")
             return default
-        if isinstance(check, _Param):
+        if isinstance(check, Range):
             values = v if isinstance(v, list) else [v]
-            if not all(_in(check, a) for a in values):
-                self.fail(where, f"{_interval(check)}, got {_show(v)}")
+            if not all(check.contains(a) for a in values):
+                self.fail(where, f"{check.describe()}, got {_show(v)}")
                 return default
         elif check is not None and v not in check:
             self.fail(where, f"must be one of {', '.join(map(_show, check))}, got {_show(v)}")
@@ -391,7 +357,7 @@ def _mesh(c: _Checker, t: dict | None, base: Path) -> tuple[dict, int]:
             "mesh.upper", f"must exceed mesh.lower = {_show(lower)} in every component, got {_show(upper)}"
         )
     cells = c.value(
-        t, "mesh", "cells", "numbers", required=True, size=gdim, check=_Param(1, INF, closed=(True, False))
+        t, "mesh", "cells", "numbers", required=True, size=gdim, check=Range(1, INF, closed=(True, False))
     )
     if cells is not None and not all(float(n).is_integer() for n in cells):
         c.fail("mesh.cells", f"must be whole numbers, got {_show(cells)}")
@@ -416,9 +382,13 @@ def _material(c: _Checker, t: dict, path: str) -> dict:
     c.keys(t, path, ("model", *params))
     m = {"model": model}
     for name, p in params.items():
-        m[name] = c.value(t, path, name, "number", default=p.default, required=p.default is None, check=p)
-    if all(m[name] is not None for name in params):
-        m["state"] = list(cls(**{k: m[k] for k in params}).state_fields())
+        m[name] = c.value(t, path, name, "number", default=p.default, required=p.required, check=p.range)
+    if not any(m[name] is None and p.required for name, p in params.items()):
+        try:
+            m["state"] = list(cls(**{k: m[k] for k in params}).state_fields())
+        except ValueError as e:  # a check across parameters ("psi must be in [0, phi]")
+            name, _, problem = str(e).partition(" ")
+            c.fail(f"{path}.{name}", problem)
     return m
 
 
@@ -427,9 +397,9 @@ def _nonlocal(c: _Checker, t: dict | None, materials: dict) -> dict:
         return {"radius": 0.0, "weight": "cubic", "skin": None}
     c.keys(t, "nonlocal", ("radius", "weight", "skin"))
     n = {
-        "radius": c.value(t, "nonlocal", "radius", "number", 0.0, True, _Param(0.0, INF, "m", (True, False))),
+        "radius": c.value(t, "nonlocal", "radius", "number", 0.0, True, Range(0.0, INF, "m", (True, False))),
         "weight": c.value(t, "nonlocal", "weight", "string", "cubic", check=tuple(WEIGHTS)),
-        "skin": c.value(t, "nonlocal", "skin", "number", None, check=_Param(0.0, INF, "m", (True, False))),
+        "skin": c.value(t, "nonlocal", "skin", "number", None, check=Range(0.0, INF, "m", (True, False))),
     }
     models = [m["model"] for m in materials.values()]
     if n["radius"] > 0.0 and models != ["drucker_prager"]:
@@ -453,7 +423,7 @@ def _body(c: _Checker, t: dict, path: str, gdim: int, materials: dict, gravity) 
     c.keys(t, path, ("material", "ppc", "region", "velocity", "stress"))
     b = {
         "material": c.value(t, path, "material", "string", required=True, check=tuple(materials)),
-        "ppc": c.value(t, path, "ppc", "integer", 4, check=_Param(1, INF, closed=(True, False))),
+        "ppc": c.value(t, path, "ppc", "integer", 4, check=Range(1, INF, closed=(True, False))),
         "region": c.region(t, path, "region", gdim, required=False),
         "velocity": c.vector(t, path, "velocity", gdim),
         "stress": None,
@@ -469,7 +439,7 @@ def _body(c: _Checker, t: dict, path: str, gdim: int, materials: dict, gravity) 
         b["stress"] = {
             "type": c.value(s, spath, "type", "string", required=True, check=("geostatic",)),
             "surface": c.value(s, spath, "surface", "number", required=True),
-            "K0": c.value(s, spath, "K0", "number", None, check=_Param(0.0, INF, closed=(True, False))),
+            "K0": c.value(s, spath, "K0", "number", None, check=Range(0.0, INF, closed=(True, False))),
         }
         if not any(gravity):
             c.fail(f"{spath}.type", "geostatic stress needs solver.gravity")
@@ -487,7 +457,7 @@ def _wall(c: _Checker, t: dict, path: str, gdim: int) -> dict:
             c.fail(f"{path}.normal", "must be a non-zero vector")
     if kind == "frictional":
         w["friction_angle"] = c.value(
-            t, path, "friction_angle", "number", 0.0, check=_Param(0.0, 90.0, "degrees", (True, False))
+            t, path, "friction_angle", "number", 0.0, check=Range(0.0, 90.0, "degrees", (True, False))
         )
     if kind == "velocity":
         w["velocity"] = c.value(t, path, "velocity", "numbers", required=True, size=gdim)
@@ -498,8 +468,8 @@ def _time(c: _Checker, t: dict | None) -> dict:
     if t is None:
         return {"start": 0.0, "end": 0.0}
     c.keys(t, "time", ("start", "end"))
-    start = c.value(t, "time", "start", "number", 0.0, check=_Param(-INF, INF))
-    end = c.value(t, "time", "end", "number", None, True, _Param(start, INF, "s"))
+    start = c.value(t, "time", "start", "number", 0.0, check=Range(-INF, INF))
+    end = c.value(t, "time", "end", "number", None, True, Range(start, INF, "s"))
     return {"start": start, "end": end if end is not None else start}
 
 
@@ -508,7 +478,7 @@ def _events(c: _Checker, events, time: dict, walls: dict) -> list[dict]:
         c.fail("events", f"must be an array of tables ([[events]]), got {_show(events)}")
         return []
     out = []
-    span = _Param(time["start"], time["end"], "s", (True, True))
+    span = Range(time["start"], time["end"], "s", (True, True))
     for k, t in enumerate(events):
         path = f"events[{k}]"
         c.keys(t, path, ("time", "remove_walls", "damping"))
@@ -528,7 +498,7 @@ def _output(c: _Checker, t: dict, time: dict, materials: dict, gdim: int) -> dic
     keys = ("interval", "xdmf", "checkpoint_interval", "figures", "figure_field", "figure_interval")
     c.keys(t, "output", keys)
     span = max(time["end"] - time["start"], 1e-300)
-    positive = _Param(0.0, INF, "s")
+    positive = Range(0.0, INF, "s")
     fields = [*_PARTICLE_FIELDS, *"xyz"[:gdim]]
     fields = [f"v{a}" if len(a) == 1 else a for a in fields]
     fields += sorted({s for m in materials.values() for s in m.get("state", [])})
@@ -646,8 +616,7 @@ def build(cfg: dict, comm=MPI.COMM_WORLD) -> Simulation:
             K0 = b["stress"]["K0"] if b["stress"]["K0"] is not None else mat.nu / (1.0 - mat.nu)
             g = float(np.linalg.norm(gravity))
             P.sigma = geostatic_stress(P.x, mat.rho, g, b["stress"]["surface"], K0, grid.gdim)
-        for field, shape in state_fields.items():
-            P.state.setdefault(field, np.zeros((len(P), *shape)))
+        P.ensure_state(state_fields)
         if particles is None:
             particles = P
         else:

@@ -31,7 +31,7 @@ from scipy.spatial import cKDTree
 
 from dolfin_mpm import native
 from dolfin_mpm.core.particles import IdIndex
-from dolfin_mpm.materials.base import check_range
+from dolfin_mpm.params import check_range
 
 __all__ = ["WEIGHTS", "NonlocalAverage"]
 

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dolfin_mpm.materials.base import check_range
+from dolfin_mpm.params import check_range
 
 __all__ = ["BoundaryCondition", "FixedBC", "FrictionalWall", "SlipBC", "VelocityBC"]
 

@@ -29,7 +29,6 @@ __all__ = [
     "evaluate",
     "function_space",
     "geometry_dofmap",
-    "petsc_vec",
     "quadrature_points",
     "quadrature_space",
     "read_mesh",
@@ -139,11 +138,6 @@ def scatter_reverse_add(x) -> None:
         x.scatter_reverse(la.InsertMode.add)
     else:
         x.scatter_reverse(la.ScatterMode.add)
-
-
-def petsc_vec(u):
-    """The PETSc Vec that shares memory with the Function ``u``."""
-    return u.x.petsc_vec if _NEW else u.vector
 
 
 _MESHIO_CELLS = {2: ("triangle", "triangle"), 3: ("tetra", "tetrahedron")}  # gdim: meshio, DOLFINx

@@ -110,16 +110,20 @@ class Grid:
         u.x.scatter_forward()
         return u.x.array.reshape(values.shape)
 
+    def refresh_ghosts(self, u: fem.Function, owned: np.ndarray) -> np.ndarray:
+        """Set the owned values of ``u`` to ``owned`` (flat) and its ghosts from their owners.
+
+        Returns:
+            All of ``u``'s values, a flat view.
+
+        """
+        u.x.array[: owned.size] = owned
+        u.x.scatter_forward()
+        return u.x.array
+
     def nodes_where(self, predicate: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
         """Nodes whose coordinates satisfy ``predicate(x)``, ``x.shape=(3, num_points)``."""
         return fem.locate_dofs_geometrical(self.V, predicate).astype(np.int64)
-
-    def nodes_on_facets(self, tags, value: int) -> np.ndarray:
-        """Nodes on the facets of a facet ``meshtags`` object marked ``value``."""
-        if tags.dim != self.tdim - 1:
-            raise ValueError(f"tags: expected facet tags of dimension {self.tdim - 1}, got {tags.dim}")
-        facets = tags.indices[tags.values == value]
-        return fem.locate_dofs_topological(self.V, self.tdim - 1, facets).astype(np.int64)
 
 
 def _largest_facet_measure(X: np.ndarray) -> np.ndarray:

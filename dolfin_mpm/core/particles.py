@@ -23,7 +23,8 @@ class Particles:
         volume: current volume [m^3] (m^2 in 2D), ``shape=(n,)``.
         sigma: Cauchy stress [Pa], ``shape=(n, 3, 3)`` (sigma_zz kept in plane strain).
         material: index into the solver's list of materials, ``shape=(n,)``.
-        id: global particle number, fixed for the life of the particle, ``shape=(n,)``.
+        id: global particle number, fixed for the life of the particle, ``shape=(n,)``; -1
+            until the solver numbers it (see :func:`dolfin_mpm.parallel.ids.number`).
         cell: local cell holding the particle, or -1 when unknown, ``shape=(n,)``.
         state: material state arrays by name, each with particle axis first.
 
@@ -40,7 +41,7 @@ class Particles:
         self.volume = np.ascontiguousarray(volume, dtype=np.float64)
         self.sigma = np.zeros((n, 3, 3)) if sigma is None else np.array(sigma, dtype=np.float64)
         self.material = np.zeros(n, np.int32) if material is None else np.asarray(material, np.int32)
-        self.id = np.arange(n, dtype=np.int64) if id is None else np.asarray(id, np.int64)
+        self.id = np.full(n, -1, dtype=np.int64) if id is None else np.array(id, np.int64)
         self.cell = np.full(n, -1, dtype=np.int32)
         self.state: dict[str, np.ndarray] = dict(state or {})
 
@@ -57,6 +58,11 @@ class Particles:
             yield name, getattr(self, name)
         for name, a in self.state.items():
             yield f"state/{name}", a
+
+    def ensure_state(self, fields: dict[str, tuple[int, ...]]) -> None:
+        """Add, as zeros, the state arrays of ``fields`` (name -> trailing shape) not yet held."""
+        for name, shape in fields.items():
+            self.state.setdefault(name, np.zeros((len(self), *shape)))
 
     def _set(self, name: str, a: np.ndarray) -> None:
         if name.startswith("state/"):

@@ -114,10 +114,8 @@ def seed(
         )
     n = x.shape[0]
     v = np.zeros((n, gdim)) if velocity is None else np.tile(np.asarray(velocity, float), (n, 1))
-    state = {name: np.zeros((n, *shape)) for name, shape in material.state_fields().items()}
-    particles = Particles(
-        x, v, material.rho * volume, volume, material=np.full(n, material_index), state=state
-    )
+    particles = Particles(x, v, material.rho * volume, volume, material=np.full(n, material_index))
+    particles.ensure_state(material.state_fields())
     particles.cell = cells
     return particles
 

@@ -54,8 +54,8 @@ class QuasiStatic:
 
     Args:
         msh: triangle mesh (2D).
-        material: a material with ``small_strain_update`` (:class:`VonMises`,
-            :class:`DruckerPragerViscoplastic`).
+        material: a :class:`~dolfin_mpm.materials.Material`; its ``small_strain_update`` gives
+            the stress, the consistent tangent and the state at the quadrature points.
         degree: polynomial degree of the displacement, 1 or 2.
         quadrature_degree: degree of the quadrature rule of the stresses.
         tol: Newton converges when the out-of-balance force is below ``tol`` times the larger

@@ -1,10 +1,11 @@
 """Checkpoints: everything a run carries from one step to the next, in one HDF5 file.
 
-Per rank: every particle array (``cell`` and the material state included), the sinks'
-records, the non-local average's reference positions (see :meth:`NonlocalAverage.state`) and
-its halo on several ranks (see :meth:`DistributedAverage.state`), and the solver's last changes
-of the internal forces (its fixed-point loop extrapolates them); for the run: time, step, time
-step, damping, the events applied and the recorded history. Rank 0 gathers and writes it under
+The solver's :class:`~dolfin_mpm.core.state.State` (per rank: every particle array, ``cell``
+and the material state included, the sinks' records, the non-local average's reference
+positions and on several ranks its halo, the last changes of the internal forces; for the run:
+time, step, time step and the fixed-point counters) and the scenario's own: the events applied
+and the recorded history. The owned nodes' coordinates are stored to refuse a checkpoint of
+another grid or partition. Rank 0 gathers and writes it under
 a temporary name, flushes it to disk and renames it over the previous checkpoint, so that a
 crash at any moment leaves the last complete one. Restoring it into a freshly built scenario
 continues the run bit for bit (on the same number of ranks).
@@ -17,12 +18,10 @@ import h5py
 import numpy as np
 from mpi4py import MPI
 
-from dolfin_mpm.core.particles import Particles
-
 __all__ = ["FORMAT", "CheckpointError", "read", "restore", "write"]
 
 #: Layout version, stored in the file.
-FORMAT = 3
+FORMAT = 4
 
 
 class CheckpointError(RuntimeError):
@@ -31,21 +30,9 @@ class CheckpointError(RuntimeError):
 
 def _local_state(sim) -> dict:
     s = sim.solver
-    sinks = {
-        name: {
-            "mass": np.array(k.mass), "momentum": np.asarray(k.momentum), "count": np.array(k.count),
-            "history": np.array(k.history, dtype=np.float64).reshape(-1, 2),
-        }
-        for name, k in s.sinks.items()
-    }  # fmt: skip
-    averaging = s.averaging.state() if s.averaging is not None else {}
-    owned = s.grid.num_owned_nodes * s.grid.gdim
-    R_changes = np.array(s.R_changes, dtype=np.float64).reshape(len(s.R_changes), owned)
-    nodes = s.grid.node_x[: s.grid.num_owned_nodes]  # R's order: the same partition on resume
-    return {
-        "particles": dict(s.particles.arrays()), "sinks": sinks, "nonlocal": averaging,
-        "solver": {"R_changes": R_changes, "nodes": nodes},
-    }  # fmt: skip
+    grid = s.grid
+    # R's order: the same partition on resume.
+    return {**s.state.tree(grid.num_owned_nodes * grid.gdim), "nodes": grid.node_x[: grid.num_owned_nodes]}
 
 
 def _write_tree(group: h5py.Group, tree: dict) -> None:
@@ -73,7 +60,7 @@ def write(path, sim, history: dict[str, np.ndarray]) -> None:
         CheckpointError: the write failed (folder gone, disk full, ...); on every rank.
 
     """
-    s, comm = sim.solver, sim.solver.comm
+    comm = sim.solver.comm
     parts = comm.gather(_local_state(sim), root=0)
     error = None
     if comm.rank == 0:
@@ -82,10 +69,11 @@ def write(path, sim, history: dict[str, np.ndarray]) -> None:
         try:
             with h5py.File(tmp, "w") as f:
                 f.attrs.update(
-                    format=FORMAT, ranks=comm.size, time=s.time, step=s.step_count, dt=s.dt,
-                    damping=s.damping, applied=np.array(sim.applied, dtype=np.int64),
-                    fixed_point=np.array([s.fixed_point[k] for k in sorted(s.fixed_point)]),
-                )  # fmt: skip
+                    format=FORMAT,
+                    ranks=comm.size,
+                    applied=np.array(sim.applied, dtype=np.int64),
+                    **sim.solver.state.scalars(),
+                )
                 for rank, part in enumerate(parts):
                     _write_tree(f.create_group(f"rank{rank}"), part)
                 _write_tree(f.create_group("history"), history)
@@ -108,8 +96,8 @@ def read(path, comm) -> dict:
     """The part of the checkpoint for this rank at ``path`` and the run's attributes (collective).
 
     Returns:
-        ``{"attrs": ..., "history": ..., "particles": ..., "sinks": ..., "nonlocal": ...,
-        "solver": ...}``.
+        ``{"attrs": ..., "history": ..., "nodes": ...}`` and this rank's part of the state
+        (see :meth:`State.tree <dolfin_mpm.core.state.State.tree>`).
 
     Raises:
         CheckpointError: missing or unreadable file, or written by another number of ranks.
@@ -145,39 +133,15 @@ def restore(sim, data: dict) -> None:
         CheckpointError: the checkpoint does not fit the scenario (other fields, sinks or grid).
 
     """
-    s, attrs = sim.solver, data["attrs"]
-    P, arrays = s.particles, data["particles"]
-    state = arrays.pop("state", {})
-    if (
-        set(arrays) != set(Particles._fields)
-        or set(state) != set(P.state)
-        or set(data["sinks"]) != set(s.sinks)
-    ):
+    s = sim.solver
+    if not s.state.fits(data):
         raise CheckpointError("the checkpoint does not fit the scenario (particle fields or sinks differ)")
-    R_changes = np.array(data["solver"]["R_changes"], dtype=np.float64)
-    same_nodes = np.array_equal(data["solver"]["nodes"], s.grid.node_x[: s.grid.num_owned_nodes])
+    same_nodes = np.array_equal(data["nodes"], s.grid.node_x[: s.grid.num_owned_nodes])
     if not s.comm.allreduce(same_nodes, MPI.LAND):  # on every rank
         raise CheckpointError(
             "the checkpoint does not fit the scenario (the grid's nodes, or their partition, differ)"
         )
-    for name, a in arrays.items():
-        setattr(P, name, np.ascontiguousarray(a))
-    P.state = {name: np.ascontiguousarray(a) for name, a in state.items()}
-    for name, rec in data["sinks"].items():
-        sink = s.sinks[name]
-        sink.mass, sink.count = float(rec["mass"]), int(rec["count"])
-        sink.momentum = np.array(rec["momentum"], dtype=np.float64)
-        sink.history = [(float(t), float(m)) for t, m in rec["history"]]
-    if s.averaging is not None:
-        s.averaging.restore(data["nonlocal"])
-    s.R_changes = list(R_changes)
     sim.applied.clear()
-    for k in attrs["applied"]:
-        sim.apply_event(int(k))
-    s.time, s.step_count, s.dt, s.damping = (
-        float(attrs["time"]),
-        int(attrs["step"]),
-        float(attrs["dt"]),
-        float(attrs["damping"]),
-    )
-    s.fixed_point.update(zip(sorted(s.fixed_point), (int(v) for v in attrs["fixed_point"])))
+    for k in data["attrs"]["applied"]:
+        sim.apply_event(int(k))  # walls and damping as they were
+    s.state.restore(data["attrs"], data)

@@ -10,10 +10,11 @@ The equivalent viscoplastic strain rate follows the paper's norm, ``e_vp = sqrt(
 ``q = q_trial - 2 G dt e_vp``, closed form for N = 1, safeguarded Newton otherwise; it is
 stable for any ``dt`` and never overshoots the yield surface (``m p <= q <= q_trial``).
 
-The update is split so that a non-local average can enter between its parts:
-:meth:`trial` (elastic predictor with the Jaumann rotation) -> :meth:`increment` (local
-viscoplastic strain increment ``de``) -> :meth:`stress` (deviator along the trial one,
-``q = q_trial - 2 G max(de, de_bar)`` with the non-local increment ``de_bar``, kept >= 0).
+The update is split so that a non-local average can enter between its parts (the protocol of
+:mod:`dolfin_mpm.materials.base`): :meth:`trial` (elastic predictor with the Jaumann rotation)
+-> :meth:`increment` (local viscoplastic strain increment ``de = dt e_vp``) -> :meth:`stress`
+(deviator along the trial one, ``q = q_trial - 2 G max(de, de_bar)`` with the non-local
+increment ``de_bar``, kept >= 0) -> :meth:`record`.
 
 How the non-local increment enters: the paper relaxes the stress by ``de_bar`` alone. Where a
 point's own increment exceeds its neighbourhood average (band centres, points next to a free
@@ -39,8 +40,9 @@ from pathlib import Path
 import numpy as np
 
 from dolfin_mpm import native
-from dolfin_mpm.materials.base import check_range
-from dolfin_mpm.materials.radial_return import IsochoricPlastic, Trial
+from dolfin_mpm.materials.base import Trial
+from dolfin_mpm.materials.radial_return import RadialReturn, applied_increment
+from dolfin_mpm.params import parameter
 
 __all__ = ["DruckerPragerViscoplastic"]
 
@@ -53,7 +55,7 @@ _kernels = native.kernels(Path(__file__).with_suffix(".c"), _SIGNATURES)
 
 
 @dataclass(frozen=True)
-class DruckerPragerViscoplastic(IsochoricPlastic):
+class DruckerPragerViscoplastic(RadialReturn):
     """Hypo-elastic, Perzyna-viscoplastic Drucker–Prager solid with g = q.
 
     Args:
@@ -61,23 +63,19 @@ class DruckerPragerViscoplastic(IsochoricPlastic):
         phi: angle of internal friction [degrees], in (0, 90).
         gamma: viscosity parameter [1/s], in (0, inf]; ``inf`` is the rate-independent limit
             (the stress returns onto the cone, ``q = m p``).
-        N: exponent of the viscosity law, > 0.
+        N: exponent of the viscosity law [-], > 0.
         c: cohesion [Pa], >= 0: the cone ``q = m (p + c cot(phi))``; the paper's sand has
             none.
 
     """
 
-    phi: float
-    gamma: float
-    N: float = 1.0
-    c: float = 0.0
+    phi: float = parameter(0.0, 90.0, "degrees")
+    gamma: float = parameter(0.0, np.inf, "1/s", closed=(False, True))
+    N: float = parameter(0.0, np.inf, default=1.0)
+    c: float = parameter(0.0, np.inf, "Pa", closed=(True, False), default=0.0)
 
     def __post_init__(self):
         super().__post_init__()
-        check_range("phi", self.phi, 0.0, 90.0)
-        check_range("gamma", self.gamma, 0.0, np.inf, closed=(False, True))
-        check_range("N", self.N, 0.0, np.inf)
-        check_range("c", self.c, 0.0, np.inf, closed=(True, False))
         _kernels()  # compiled now, before any long work
 
     @property
@@ -95,13 +93,17 @@ class DruckerPragerViscoplastic(IsochoricPlastic):
         # Equivalent viscoplastic strain rate (local and non-local) [1/s], accumulated strain [-].
         return {"eps_vp_rate": (), "eps_vp_rate_nonlocal": (), "eps_vp": ()}
 
-    # -- the three parts of the update ---------------------------------------------------------
-    def increment(self, trial: Trial, dt: float) -> np.ndarray:
-        """Local equivalent viscoplastic strain increment ``de = dt * e_vp`` (backward Euler).
+    def at_apex(self, trial: Trial) -> np.ndarray:
+        """Points whose trial pressure is beyond the apex, ``p_trial + c cot(phi) <= 0``, ``shape=(n,)``."""
+        return trial.p + self.tension_limit <= 0.0
+
+    # -- the parts of the update -----------------------------------------------------------
+    def increment(self, trial: Trial, state: dict[str, np.ndarray], dt: float) -> np.ndarray:
+        """Local equivalent viscoplastic strain increment ``de = dt e_vp`` [-] (backward Euler).
 
         Solves ``de = dt 3/2 gamma <Phi(q)>`` with ``q = q_trial - 2 G de`` for ``de >= 0``
         (closed form for N = 1, safeguarded Newton otherwise); at the apex
-        (``p <= -c cot(phi)``) ``de = q_trial / 2G``. ``shape=(n,)``.
+        (``p <= -c cot(phi)``) ``de = q_trial / 2G``. ``state`` is not needed. ``shape=(n,)``.
         """
         de = np.empty_like(trial.q)
         _kernels().dp_increment(
@@ -118,11 +120,12 @@ class DruckerPragerViscoplastic(IsochoricPlastic):
         return de
 
     def stress(self, trial: Trial, de: np.ndarray, de_nonlocal: np.ndarray | None = None) -> np.ndarray:
-        """Stress along the trial deviator, ``shape=(n, 3, 3)``.
+        """Stress along the trial deviator [Pa], ``shape=(n, 3, 3)``.
 
         ``q = q_trial - 2 G de`` with the local increment ``de``; with a non-local increment
         ``de_nonlocal``, ``q = q_trial - 2 G max(de, de_nonlocal)``: neighbours can drag a
-        point into viscoplastic flow but never give it more strength than its own law.
+        point into viscoplastic flow but never give it more strength than its own law. ``q`` is
+        kept >= 0; at the apex the stress is ``c cot(phi) I``.
         """
         de = np.ascontiguousarray(de, dtype=np.float64)
         de_nonlocal = de if de_nonlocal is None else np.ascontiguousarray(de_nonlocal, dtype=np.float64)
@@ -130,8 +133,14 @@ class DruckerPragerViscoplastic(IsochoricPlastic):
         _kernels().dp_end_state(len(de), trial.p, trial.q, de, de_nonlocal, self.G, self.tension_limit, p, q)
         return self.radial_stress(trial, q, p)
 
+    def record(self, state, de, de_nonlocal, dt):
+        """Store the local and non-local rates [1/s] and accumulate the applied strain ``eps_vp``."""
+        state["eps_vp_rate"][:] = de / dt
+        state["eps_vp_rate_nonlocal"][:] = (de if de_nonlocal is None else de_nonlocal) / dt
+        state["eps_vp"][:] += applied_increment(de, de_nonlocal)
+
     def tangent(self, trial: Trial, de: np.ndarray, dt: float) -> np.ndarray:
-        """Consistent tangent of the local update ``stress(trial, increment(trial, dt))``.
+        """Consistent tangent of the local update ``stress(trial, increment(trial, state, dt))``.
 
         Mandel, ``shape=(n, 6, 6)`` [Pa]; zero at the apex (the stress there is fixed).
         """
@@ -152,28 +161,3 @@ class DruckerPragerViscoplastic(IsochoricPlastic):
         D = self.radial_tangent(trial, q, dq_dqtrial, dq_dp)
         D[pt <= 0.0] = 0.0
         return D
-
-    def small_strain_update(self, sigma, deps, state, dt=1.0):
-        """Implicit small-strain step from ``sigma`` by the strain increment ``deps`` (n, 3, 3).
-
-        ``dt`` [s] matters only for finite ``gamma``.
-        Returns the stress, the consistent tangent (Mandel, ``shape=(n, 6, 6)``) and the new
-        state, leaving ``state`` untouched.
-        """
-        trial = self.trial(sigma, deps / dt, dt)
-        de = self.increment(trial, dt)
-        new = {"eps_vp_rate": de / dt, "eps_vp_rate_nonlocal": de / dt, "eps_vp": state["eps_vp"] + de}
-        return self.stress(trial, de), self.tangent(trial, de, dt), new
-
-    def update(self, sigma, L, dt, state):
-        trial = self.trial(sigma, L, dt)
-        de = self.increment(trial, dt)
-        self.record(state, de, de, dt)
-        return self.stress(trial, de)
-
-    @staticmethod
-    def record(state: dict[str, np.ndarray], de: np.ndarray, de_nonlocal: np.ndarray, dt: float) -> None:
-        """Store the local and non-local rates and accumulate the applied equivalent strain."""
-        state["eps_vp_rate"][:] = de / dt
-        state["eps_vp_rate_nonlocal"][:] = de_nonlocal / dt
-        state["eps_vp"][:] += np.maximum(de, de_nonlocal)

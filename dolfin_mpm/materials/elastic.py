@@ -4,7 +4,8 @@ The rate is integrated incrementally objectively (Hughes–Winget): the stress i
 ``Q = (I - dt W/2)^-1 (I + dt W/2)``, exactly orthogonal for any ``dt W``, then the elastic
 increment is added. The predictor is one compiled pass over the particles
 (``hypoelastic.c``): in numpy its ~100 flops per particle streamed a dozen temporary
-arrays through memory, a quarter of the paper's step.
+arrays through memory, a quarter of the paper's step. It is the :meth:`~LinearElastic.trial`
+of every material here; the elastic solid takes it as the end state (no plastic increment).
 """
 
 import ctypes
@@ -14,8 +15,9 @@ from pathlib import Path
 import numpy as np
 
 from dolfin_mpm import native
-from dolfin_mpm.materials.base import Material, check_range
+from dolfin_mpm.materials.base import Material, Trial
 from dolfin_mpm.materials.tensor import component_first, deviator, particle_first
+from dolfin_mpm.params import parameter
 
 __all__ = ["LinearElastic"]
 
@@ -28,6 +30,9 @@ _SIGNATURES = {
 }  # fmt: skip
 _kernels = native.kernels(Path(__file__).with_name("hypoelastic.c"), _SIGNATURES)
 
+_ONE = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])  # Mandel identity
+_I_DEV = np.eye(6) - np.outer(_ONE, _ONE) / 3.0  # Mandel deviatoric projector
+
 
 @dataclass(frozen=True)
 class LinearElastic(Material):
@@ -35,19 +40,17 @@ class LinearElastic(Material):
 
     Args:
         E: Young's modulus [Pa], > 0.
-        nu: Poisson's ratio, in (-1, 0.5).
+        nu: Poisson's ratio [-], in (-1, 0.5).
         rho: mass density [kg/m^3], > 0.
 
     """
 
-    E: float
-    nu: float
-    rho: float
+    E: float = parameter(0.0, np.inf, "Pa")
+    nu: float = parameter(-1.0, 0.5)
+    rho: float = parameter(0.0, np.inf, "kg/m^3")
 
     def __post_init__(self):
-        check_range("E", self.E, 0.0, np.inf)
-        check_range("nu", self.nu, -1.0, 0.5)
-        check_range("rho", self.rho, 0.0, np.inf)
+        super().__post_init__()
         _kernels()  # compiled now, before any long work
 
     @property
@@ -63,7 +66,7 @@ class LinearElastic(Material):
     def p_wave_speed(self) -> float:
         return float(np.sqrt((self.K + 4.0 * self.G / 3.0) / self.rho))
 
-    def predictor(self, sigma, L, dt) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def trial(self, sigma, L, dt) -> Trial:
         """The elastic update of ``sigma`` split into pressure, deviator and equivalent stress.
 
         Args:
@@ -74,21 +77,34 @@ class LinearElastic(Material):
             dt: time step [s].
 
         Returns:
-            ``p`` [Pa] ``shape=(n,)``, the deviator ``s`` [Pa] ``shape=(3, 3, n)``
-            (component-first) and ``q = sqrt(3/2 s:s)`` [Pa] ``shape=(n,)``.
+            ``Trial(p, s, q)``: ``p`` [Pa] ``shape=(n,)``, the deviator ``s`` [Pa]
+            ``shape=(3, 3, n)`` (component-first), ``q = sqrt(3/2 s:s)`` [Pa] ``shape=(n,)``.
 
         """
         sigma, L = (component_first(np.asarray(a, dtype=np.float64)) for a in (sigma, L))
         n = sigma.shape[-1]
         p, s, q = np.empty(n), np.empty((3, 3, n)), np.empty(n)
         _kernels().hypoelastic_trial(n, L.shape[0], sigma, L, dt, self.K, self.G, p, s, q)
-        return p, s, q
+        return Trial(p=p, s=s, q=q)
 
-    def update(self, sigma, L, dt, state):
-        p, s, _ = self.predictor(sigma, L, dt)
+    def increment(self, trial, state, dt):
+        """No plastic strain: zeros, ``shape=(n,)``."""
+        return np.zeros_like(trial.q)
+
+    def stress(self, trial, de, de_nonlocal=None):
+        """The trial stress ``s - p I`` [Pa], ``shape=(n, 3, 3)`` (the increments are zero)."""
+        sigma = trial.s.copy()
         for i in range(3):
-            s[i, i] -= p
-        return particle_first(s)
+            sigma[i, i] -= trial.p
+        return particle_first(sigma)
+
+    def record(self, state, de, de_nonlocal, dt):
+        """No state."""
+
+    def tangent(self, trial, de, dt):
+        """Elastic stiffness ``K 1x1 + 2 G I_dev`` [Pa], Mandel, ``shape=(n, 6, 6)``."""
+        D = self.K * np.outer(_ONE, _ONE) + 2.0 * self.G * _I_DEV
+        return np.broadcast_to(D, (len(trial.q), 6, 6)).copy()
 
     def strain_energy_density(self, sigma):
         p, s = deviator(sigma)

@@ -21,10 +21,14 @@ and in ``q``-``p`` form ``M = 3 sqrt(3) alpha``, ``M_g = 3 sqrt(3) alpha_g``. As
 (``psi = phi``): ``alpha = tan(phi) / sqrt(9 + 12 tan^2 phi)``, ``M = 0.832`` at 30 deg;
 ``psi = 0``: ``M = sqrt(3) sin(phi)`` (0.866). The apex stays at ``p = -c cot(phi)``.
 
-The return (closed form, exact for any step): on the cone
-``dlam = f_trial / (3 G + K M M_g)``, ``q = q_trial - 3 G dlam``, ``p = p_trial + K M_g dlam``;
-where that would give ``q < 0``, i.e. ``p_trial + c cot(phi) < -K M_g q_trial / (3 G)``, the
-stress returns to the apex, ``sigma = c cot(phi) I``, where the consistent tangent is zero.
+The return (closed form, exact for any step): on the cone the plastic multiplier is
+``dlam = f_trial / (3 G + K M M_g)``, ``q = q_trial - 3 G dlam``, ``p = p_trial + K M_g dlam``.
+``dlam`` is the conventional equivalent plastic strain ``sqrt(2/3 de_p:de_p)`` of the
+deviator (the state ``eps_p`` accumulates it); the increment of the protocol is the paper's
+norm, ``de = 3/2 dlam``: ``q = q_trial - 2 G de``, ``p = p_trial + 2/3 K M_g de``. Where the
+cone return would give ``q < 0``, i.e. ``3 G (p_trial + c cot(phi)) < -K M_g q_trial``
+(:meth:`~MohrCoulombDruckerPrager.at_apex`), the stress returns to the apex,
+``sigma = c cot(phi) I``, with ``de = q_trial / 2G``; the consistent tangent is zero there.
 For ``psi = 0`` this is the rate-independent :class:`DruckerPragerViscoplastic` with slope
 ``M`` in place of its ``m``, apex included.
 """
@@ -33,9 +37,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dolfin_mpm.materials.base import check_range
-from dolfin_mpm.materials.radial_return import IsochoricPlastic, Trial
+from dolfin_mpm.materials.base import Trial
+from dolfin_mpm.materials.radial_return import RadialReturn, applied_increment
 from dolfin_mpm.materials.tensor import particle_first, to_mandel
+from dolfin_mpm.params import Range, parameter
 
 __all__ = ["MohrCoulombDruckerPrager"]
 
@@ -43,7 +48,7 @@ _ONE = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])
 
 
 @dataclass(frozen=True)
-class MohrCoulombDruckerPrager(IsochoricPlastic):
+class MohrCoulombDruckerPrager(RadialReturn):
     """Perfectly plastic Drucker–Prager cone matched to Mohr–Coulomb in plane strain.
 
     Args:
@@ -54,16 +59,14 @@ class MohrCoulombDruckerPrager(IsochoricPlastic):
 
     """
 
-    phi: float
-    c: float = 0.0
-    psi: float | None = None
+    phi: float = parameter(0.0, 90.0, "degrees")
+    c: float = parameter(0.0, np.inf, "Pa", closed=(True, False), default=0.0)
+    psi: float | None = parameter(0.0, 90.0, "degrees", closed=(True, True), default=None)
 
     def __post_init__(self):
         super().__post_init__()
-        check_range("phi", self.phi, 0.0, 90.0)
-        check_range("c", self.c, 0.0, np.inf, closed=(True, False))
-        if self.psi is not None:
-            check_range("psi", self.psi, 0.0, self.phi, closed=(True, True))
+        if self.psi is not None:  # the field's range is [0, 90]; the flow may not outdilate phi
+            Range(0.0, self.phi, "degrees", closed=(True, True)).check("psi", self.psi)
 
     @property
     def M_g(self) -> float:
@@ -85,27 +88,45 @@ class MohrCoulombDruckerPrager(IsochoricPlastic):
     def state_fields(self):
         return {"eps_p": ()}  # accumulated plastic multiplier, sqrt(2/3 e_p:e_p) of the deviator [-]
 
-    def increment(self, trial: Trial) -> np.ndarray:
-        """Plastic multiplier ``dlam`` of the return (``inf`` marks the apex), ``shape=(n,)``."""
-        pt = trial.p + self.tension_limit
-        dlam = np.maximum(trial.q - self.M * pt, 0.0) / (3.0 * self.G + self.K * self.M * self.M_g)
-        dlam[3.0 * self.G * pt < -self.K * self.M_g * trial.q] = np.inf
-        return dlam
+    def at_apex(self, trial: Trial) -> np.ndarray:
+        """Points that return to the apex, ``3 G (p_trial + c cot(phi)) < -K M_g q_trial``, ``shape=(n,)``."""
+        return 3.0 * self.G * (trial.p + self.tension_limit) < -self.K * self.M_g * trial.q
 
-    def stress(self, trial: Trial, dlam: np.ndarray) -> np.ndarray:
-        """Stress after the return, ``shape=(n, 3, 3)``."""
-        apex = np.isinf(dlam)
-        d = np.where(apex, 0.0, dlam)
-        q = np.where(apex, 0.0, trial.q - 3.0 * self.G * d)
-        p = np.where(apex, -self.tension_limit, trial.p + self.K * self.M_g * d)
+    def increment(self, trial: Trial, state: dict[str, np.ndarray], dt: float) -> np.ndarray:
+        """Plastic strain increment ``de = 3/2 dlam`` [-] (paper's norm), ``shape=(n,)``.
+
+        ``q_trial / 2G`` at the apex; ``state`` and ``dt`` are not needed.
+        """
+        pt = trial.p + self.tension_limit
+        de = 1.5 * np.maximum(trial.q - self.M * pt, 0.0) / (3.0 * self.G + self.K * self.M * self.M_g)
+        apex = self.at_apex(trial)
+        de[apex] = trial.q[apex] / (2.0 * self.G)
+        return de
+
+    def stress(self, trial: Trial, de: np.ndarray, de_nonlocal: np.ndarray | None = None) -> np.ndarray:
+        """Stress after the return [Pa], ``shape=(n, 3, 3)``.
+
+        Applies ``d = max(de, de_nonlocal)``, capped at ``q_trial / 2G``: ``q = q_trial - 2 G d``,
+        ``p = p_trial + 2/3 K M_g d``; at the apex ``sigma = c cot(phi) I``.
+        """
+        G = self.G
+        d = np.minimum(applied_increment(de, de_nonlocal), trial.q / (2.0 * G))
+        apex = self.at_apex(trial)
+        q = np.where(apex, 0.0, np.maximum(trial.q - 2.0 * G * d, 0.0))
+        p = np.where(apex, -self.tension_limit, trial.p + (2.0 / 3.0) * self.K * self.M_g * d)
         return self.radial_stress(trial, q, p)
 
-    def tangent(self, trial: Trial, dlam: np.ndarray) -> np.ndarray:
-        """Consistent tangent of the return (Mandel), ``shape=(n, 6, 6)`` [Pa]; zero at the apex."""
+    def record(self, state, de, de_nonlocal, dt):
+        """Accumulate ``eps_p += 2/3 max(de, de_nonlocal)`` (``q_trial / 3G`` at the apex)."""
+        state["eps_p"][:] += (2.0 / 3.0) * applied_increment(de, de_nonlocal)
+
+    def tangent(self, trial: Trial, de: np.ndarray, dt: float) -> np.ndarray:
+        """Consistent tangent of the return [Pa] (Mandel), ``shape=(n, 6, 6)``; zero at the apex."""
         K, G, M, M_g = self.K, self.G, self.M, self.M_g
         H = 3.0 * G + K * M * M_g
-        act = (dlam > 0.0) & np.isfinite(dlam)
-        q = np.where(act, trial.q - 3.0 * G * np.where(act, dlam, 0.0), trial.q)
+        apex = self.at_apex(trial)
+        act = (de > 0.0) & ~apex
+        q = np.where(act, trial.q - 2.0 * G * np.where(act, de, 0.0), trial.q)
         dq_dqtrial = np.where(act, 1.0 - 3.0 * G / H, 1.0)
         dq_dp = np.where(act, 3.0 * G * M / H, 0.0)
         D = self.radial_tangent(trial, q, dq_dqtrial, dq_dp)
@@ -114,26 +135,5 @@ class MohrCoulombDruckerPrager(IsochoricPlastic):
             n = to_mandel(particle_first(trial.s))[act] / norm[act, None]
             dlam_deps = (np.sqrt(6.0) * G * n + M * K * _ONE) / H
             D[act] -= K * M_g * _ONE[None, :, None] * dlam_deps[:, None, :]
-        D[np.isinf(dlam)] = 0.0
+        D[apex] = 0.0
         return D
-
-    def small_strain_update(self, sigma, deps, state):
-        """Implicit small-strain step from ``sigma`` by the strain increment ``deps`` (n, 3, 3).
-
-        Returns the stress, the consistent tangent (Mandel, ``shape=(n, 6, 6)``) and the new
-        state, leaving ``state`` untouched.
-        """
-        trial = self.trial(sigma, deps, 1.0)
-        dlam = self.increment(trial)
-        new = {"eps_p": state["eps_p"] + self._applied(trial, dlam)}
-        return self.stress(trial, dlam), self.tangent(trial, dlam), new
-
-    def update(self, sigma, L, dt, state):
-        trial = self.trial(sigma, L, dt)
-        dlam = self.increment(trial)
-        state["eps_p"][:] += self._applied(trial, dlam)
-        return self.stress(trial, dlam)
-
-    def _applied(self, trial: Trial, dlam: np.ndarray) -> np.ndarray:
-        """Deviatoric plastic strain of the return; ``q_trial / 3G`` at the apex."""
-        return np.where(np.isinf(dlam), trial.q / (3.0 * self.G), dlam)

@@ -1,11 +1,13 @@
-"""Radial return of isochoric plasticity, shared by the explicit MPM and the implicit FE solver.
+"""Radial return: plastic flow whose deviatoric part is along the trial deviator.
 
-Von Mises and the paper's Drucker–Prager with ``g = q`` both flow along the deviator and never
-change the pressure. After an elastic predictor ``(p, s_trial, q_trial)`` the stress is
+Von Mises, the paper's Drucker–Prager (``g = q``) and the dilatant Drucker–Prager cone
+(``g = q - M_g p``) all return along the trial deviator. After an elastic predictor
+``(p_trial, s_trial, q_trial)`` the stress is
 
-    sigma = (q / q_trial) s_trial - p I
+    sigma = (q / q_trial) s_trial - p I,   q = q_trial - 2 G de,
 
-with the equivalent stress ``q(q_trial, p)`` that the material's return mapping gives. Its
+with the plastic strain increment ``de`` (paper's norm, see :mod:`dolfin_mpm.materials.base`)
+that the material's return mapping gives, and ``p = p_trial`` unless the flow dilates. Its
 consistent tangent (``d sigma / d eps`` at fixed state, what Newton's method needs) is then
 
     D = K 1x1 + 2 G b I_dev + 2 G (q' - b) n x n - sqrt(2/3) K q_p n x 1,
@@ -16,16 +18,16 @@ strains by a plain matrix product.
 """
 
 import ctypes
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from dolfin_mpm import native
+from dolfin_mpm.materials.base import Trial
 from dolfin_mpm.materials.elastic import LinearElastic
 from dolfin_mpm.materials.tensor import particle_first, to_mandel
 
-__all__ = ["IsochoricPlastic", "Trial"]
+__all__ = ["RadialReturn", "applied_increment"]
 
 _REAL = native.array(np.float64)
 _SIGNATURES = {"radial_stress": (ctypes.c_int64, *[_REAL] * 5)}
@@ -36,40 +38,36 @@ _ONE = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])
 _I_DEV = np.eye(6) - np.outer(_ONE, _ONE) / 3.0
 
 
-@dataclass
-class Trial:
-    """Elastic predictor of one step (component-first arrays).
+def applied_increment(de: np.ndarray, de_nonlocal: np.ndarray | None) -> np.ndarray:
+    """``max(de, de_nonlocal)``, or ``de`` itself when there is no non-local increment."""
+    return de if de_nonlocal is None else np.maximum(de, de_nonlocal)
 
-    Attributes:
-        p: pressure [Pa], ``shape=(n,)``.
-        s: deviator [Pa], ``shape=(3, 3, n)``.
-        q: equivalent stress of ``s`` [Pa], ``shape=(n,)``.
 
+class RadialReturn(LinearElastic):
+    """Hypo-elastic solid returning along the trial deviator: the parts every such return shares.
+
+    Subclasses give :meth:`increment`, :meth:`record` and :meth:`tangent`; the stress here
+    keeps the trial pressure (isochoric flow) and applies ``max(de, de_nonlocal)``, capped at
+    ``q = 0``.
     """
 
-    p: np.ndarray
-    s: np.ndarray
-    q: np.ndarray
-
-
-class IsochoricPlastic(LinearElastic):
-    """Hypo-elastic solid whose plastic flow is deviatoric: the parts every return mapping shares."""
+    plastic = True
 
     def __post_init__(self):
         super().__post_init__()
         _kernels()  # compiled now, before any long work
 
-    def trial(self, sigma: np.ndarray, L: np.ndarray, dt: float) -> Trial:
-        """Elastic predictor: the hypo-elastic update of :class:`LinearElastic`, split into p and s.
+    def stress(self, trial: Trial, de: np.ndarray, de_nonlocal: np.ndarray | None = None) -> np.ndarray:
+        """``sigma = (q / q_trial) s_trial - p_trial I`` with ``q = max(q_trial - 2 G de, 0)``.
 
-        An implicit small-strain caller passes the strain increment as ``L`` with ``dt = 1``.
+        ``de`` [-] ``shape=(n,)``, or the larger of it and ``de_nonlocal``. ``shape=(n, 3, 3)`` [Pa].
         """
-        p, s, q = self.predictor(sigma, L, dt)
-        return Trial(p=p, s=s, q=q)
+        q = np.maximum(trial.q - 2.0 * self.G * applied_increment(de, de_nonlocal), 0.0)
+        return self.radial_stress(trial, q, trial.p)
 
     @staticmethod
     def radial_stress(trial: Trial, q: np.ndarray, p: np.ndarray) -> np.ndarray:
-        """``(q / q_trial) s_trial - p I``, ``shape=(n, 3, 3)``; no deviator where ``q_trial = 0``."""
+        """``(q / q_trial) s_trial - p I`` [Pa], ``shape=(n, 3, 3)``; no deviator where ``q_trial = 0``."""
         sigma = np.empty_like(trial.s)
         q, p = (np.ascontiguousarray(a, dtype=np.float64) for a in (q, p))
         _kernels().radial_stress(len(q), trial.s, trial.q, q, p, sigma)
@@ -78,7 +76,7 @@ class IsochoricPlastic(LinearElastic):
     def radial_tangent(
         self, trial: Trial, q: np.ndarray, dq_dqtrial: np.ndarray, dq_dp: np.ndarray
     ) -> np.ndarray:
-        """Consistent tangent of :meth:`radial_stress` (Mandel), ``shape=(n, 6, 6)`` [Pa]."""
+        """Consistent tangent of :meth:`radial_stress` [Pa] (Mandel), ``shape=(n, 6, 6)``."""
         K, G = self.K, self.G
         norm = np.sqrt(2.0 / 3.0) * trial.q  # |s_trial|
         n = to_mandel(particle_first(trial.s)) / np.where(norm > 0.0, norm, 1.0)[:, None]

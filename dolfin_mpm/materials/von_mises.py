@@ -2,23 +2,26 @@
 
     f = q - (sigma_y + H eps_p),   q = sqrt(3/2 s:s),   associated flow along s
 
-``eps_p = sqrt(2/3 e_p:e_p)`` is the accumulated equivalent plastic strain. The return is
-closed form, ``eps_p += (q_trial - sigma_y - H eps_p) / (3 G + H)``, exact for any step; its
-consistent tangent serves the implicit FE solver.
+``eps_p = sqrt(2/3 e_p:e_p)`` is the accumulated equivalent plastic strain in its conventional
+measure (the state); the increment of the protocol is the paper's norm of the same strain,
+``de = sqrt(3/2 de_p:de_p) = 3/2 d eps_p``, so that ``q = q_trial - 2 G de = q_trial - 3 G
+d eps_p``. The return is closed form, ``d eps_p = (q_trial - sigma_y - H eps_p) / (3 G + H)``,
+exact for any step; its consistent tangent serves the implicit FE solver.
 """
 
 from dataclasses import dataclass
 
 import numpy as np
 
-from dolfin_mpm.materials.base import check_range
-from dolfin_mpm.materials.radial_return import IsochoricPlastic, Trial
+from dolfin_mpm.materials.base import Trial
+from dolfin_mpm.materials.radial_return import RadialReturn, applied_increment
+from dolfin_mpm.params import parameter
 
 __all__ = ["VonMises"]
 
 
 @dataclass(frozen=True)
-class VonMises(IsochoricPlastic):
+class VonMises(RadialReturn):
     """Hypo-elastic, rate-independent von Mises solid.
 
     Args:
@@ -28,44 +31,26 @@ class VonMises(IsochoricPlastic):
 
     """
 
-    sigma_y: float
-    H: float = 0.0
-
-    def __post_init__(self):
-        super().__post_init__()
-        check_range("sigma_y", self.sigma_y, 0.0, np.inf)
-        check_range("H", self.H, 0.0, np.inf, closed=(True, False))
+    sigma_y: float = parameter(0.0, np.inf, "Pa")
+    H: float = parameter(0.0, np.inf, "Pa", closed=(True, False), default=0.0)
 
     def state_fields(self):
-        return {"eps_p": ()}  # accumulated equivalent plastic strain [-]
+        return {"eps_p": ()}  # accumulated equivalent plastic strain sqrt(2/3 e_p:e_p) [-]
 
-    def increment(self, trial: Trial, eps_p: np.ndarray) -> np.ndarray:
-        """Equivalent plastic strain increment of the return, ``shape=(n,)``, >= 0."""
-        overstress = trial.q - (self.sigma_y + self.H * eps_p)
-        return np.maximum(overstress, 0.0) / (3.0 * self.G + self.H)
+    def increment(self, trial: Trial, state: dict[str, np.ndarray], dt: float) -> np.ndarray:
+        """Plastic strain increment ``de`` [-] (paper's norm) of the return, ``shape=(n,)``, >= 0.
 
-    def stress(self, trial: Trial, deps_p: np.ndarray) -> np.ndarray:
-        """Stress after the return, ``shape=(n, 3, 3)``."""
-        return self.radial_stress(trial, trial.q - 3.0 * self.G * deps_p, trial.p)
-
-    def tangent(self, trial: Trial, deps_p: np.ndarray) -> np.ndarray:
-        """Consistent tangent of the return (Mandel), ``shape=(n, 6, 6)`` [Pa]."""
-        dq_dqtrial = np.where(deps_p > 0.0, self.H / (3.0 * self.G + self.H), 1.0)
-        q = trial.q - 3.0 * self.G * deps_p
-        return self.radial_tangent(trial, q, dq_dqtrial, np.zeros_like(q))
-
-    def small_strain_update(self, sigma, deps, state):
-        """Implicit small-strain step from ``sigma`` by the strain increment ``deps`` (n, 3, 3).
-
-        Returns the stress, the consistent tangent (Mandel, ``shape=(n, 6, 6)``) and the new
-        state, leaving ``state`` untouched.
+        Reads the hardening from ``state["eps_p"]``; ``dt`` is not needed.
         """
-        trial = self.trial(sigma, deps, 1.0)
-        deps_p = self.increment(trial, state["eps_p"])
-        return self.stress(trial, deps_p), self.tangent(trial, deps_p), {"eps_p": state["eps_p"] + deps_p}
+        overstress = trial.q - (self.sigma_y + self.H * state["eps_p"])
+        return 1.5 * np.maximum(overstress, 0.0) / (3.0 * self.G + self.H)
 
-    def update(self, sigma, L, dt, state):
-        trial = self.trial(sigma, L, dt)
-        deps_p = self.increment(trial, state["eps_p"])
-        state["eps_p"][:] += deps_p
-        return self.stress(trial, deps_p)
+    def record(self, state, de, de_nonlocal, dt):
+        """Accumulate ``eps_p += 2/3 max(de, de_nonlocal)`` (the conventional measure)."""
+        state["eps_p"][:] += (2.0 / 3.0) * applied_increment(de, de_nonlocal)
+
+    def tangent(self, trial: Trial, de: np.ndarray, dt: float) -> np.ndarray:
+        """Consistent tangent of the return [Pa] (Mandel), ``shape=(n, 6, 6)``."""
+        dq_dqtrial = np.where(de > 0.0, self.H / (3.0 * self.G + self.H), 1.0)
+        q = np.maximum(trial.q - 2.0 * self.G * de, 0.0)
+        return self.radial_tangent(trial, q, dq_dqtrial, np.zeros_like(q))

@@ -13,7 +13,12 @@ from mpi4py import MPI
 
 from dolfin_mpm.core.particles import IdIndex
 
-__all__ = ["DistributedAverage", "Halo"]
+__all__ = ["DistributedAverage", "Halo", "over_ranks"]
+
+
+def over_ranks(average, comm):
+    """``average`` over the particles of all ranks of ``comm``: itself on one rank."""
+    return average if comm.size == 1 else DistributedAverage(average, comm)
 
 
 class DistributedAverage:

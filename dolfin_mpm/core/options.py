@@ -1,0 +1,61 @@
+"""The numerical options of the explicit step, each with its allowed values in one place."""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from dolfin_mpm.params import parameter, parameters
+
+__all__ = ["INTEGERS", "SCHEMES", "Options"]
+
+#: Where the velocities that give the strain rate come from: re-mapped momentum (MUSL) or the
+#: nodal solve (USL).
+SCHEMES = ("MUSL", "USL")
+
+
+#: The options that take whole numbers.
+INTEGERS = ("fixed_point_max_iter", "anderson_depth", "extrapolation")
+
+
+@dataclass(frozen=True)
+class Options:
+    """Settings of the step; the scenario's ``[solver]`` table is built from these fields.
+
+    Args:
+        scheme: ``"MUSL"`` (velocities re-mapped before the strain rate) or ``"USL"``.
+        flip: FLIP fraction of the particle velocity update, in [0, 1] (1 = pure FLIP).
+        damping: local non-viscous (Cundall) damping factor, in [0, 1).
+        courant: Courant factor of the automatic time step, in (0, 1].
+        dt: time step [s], > 0; ``None``: ``courant * h_min / max p-wave speed``.
+        mass_tol: nodes lighter than ``mass_tol * max nodal mass`` are left at rest, in [0, 1).
+        on_exit: ``"error"`` to stop when a particle leaves the grid, or the sink receiving it.
+        fixed_point_tol: loop tolerance on the relative change of ``R``, > 0.
+        fixed_point_max_iter: most iterates per step, >= 1.
+        relaxation: under-relaxation of the ``R`` iterates, in (0, 1].
+        anderson_depth: Anderson acceleration depth of the loop, >= 0 (0: plain iteration).
+        extrapolation: order 0, 1 or 2 of the loop's first iterate (see :mod:`dolfin_mpm.core.step`).
+
+    """
+
+    scheme: str = "MUSL"
+    flip: float = parameter(0.0, 1.0, closed=(True, True), default=1.0)
+    damping: float = parameter(0.0, 1.0, closed=(True, False), default=0.0)
+    courant: float = parameter(0.0, 1.0, closed=(False, True), default=0.5)
+    dt: float | None = parameter(0.0, np.inf, "s", default=None)
+    mass_tol: float = parameter(0.0, 1.0, closed=(True, False), default=1e-10)
+    on_exit: str = "error"
+    fixed_point_tol: float = parameter(0.0, np.inf, default=1e-3)
+    fixed_point_max_iter: int = parameter(1, np.inf, closed=(True, False), default=50)
+    relaxation: float = parameter(0.0, 1.0, closed=(False, True), default=1.0)
+    anderson_depth: int = parameter(0, np.inf, closed=(True, False), default=5)
+    extrapolation: int = parameter(0, 2, closed=(True, True), default=2)
+
+    def __post_init__(self):
+        if self.scheme not in SCHEMES:
+            raise ValueError(f"scheme must be 'USL' or 'MUSL', got {self.scheme!r}")
+        for name, p in parameters(self).items():
+            value = getattr(self, name)
+            if name in INTEGERS and not isinstance(value, (int, np.integer)):
+                raise ValueError(f"{name} must be an integer, got {value!r}")
+            if value is not None:
+                p.range.check(name, value)

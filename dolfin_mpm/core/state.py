@@ -1,0 +1,99 @@
+"""What a run carries from one step to the next, in one object (Warp's ``State``).
+
+The step reads and writes it; checkpoints serialise it (:meth:`State.tree`) and restore it
+(:meth:`State.restore`); nothing else holds time-varying data between steps. What does not
+change during a run (grid, materials, boundary conditions, options) is the solver's.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from dolfin_mpm.core.particles import Particles, Sink
+
+__all__ = ["FIXED_POINT_STATISTICS", "State"]
+
+#: Counters of the fixed-point loop: steps looped, iterations in all, most in one step, and
+#: steps that reached the iteration limit.
+FIXED_POINT_STATISTICS = ("steps", "iterations", "max_iterations", "unconverged")
+
+
+@dataclass
+class State:
+    """The time-varying data of a run.
+
+    Attributes:
+        particles: this rank's material points.
+        sinks: sinks by name, with what they absorbed.
+        dt: time step [s].
+        time: simulated time [s].
+        step: steps taken.
+        average: the non-local average with its neighbour lists (``None``: local model).
+        R_changes: changes of the owned internal forces ``R`` made by the last steps' stress
+            updates, latest first, each ``shape=(owned nodes * gdim,)`` (the fixed-point loop
+            extrapolates them).
+        fixed_point: the loop's counters, :data:`FIXED_POINT_STATISTICS`.
+        migrated: particles moved between ranks since the start (a diagnostic, not stored).
+
+    """
+
+    particles: Particles
+    sinks: dict[str, Sink]
+    dt: float
+    time: float = 0.0
+    step: int = 0
+    average: object | None = None
+    R_changes: list[np.ndarray] = field(default_factory=list)
+    fixed_point: dict[str, int] = field(default_factory=lambda: dict.fromkeys(FIXED_POINT_STATISTICS, 0))
+    migrated: int = 0
+
+    # -- serialisation -------------------------------------------------------------------------
+    def scalars(self) -> dict:
+        """Time, step, time step and loop counters: the same on every rank."""
+        counters = np.array([self.fixed_point[k] for k in FIXED_POINT_STATISTICS], dtype=np.int64)
+        return {"time": self.time, "step": self.step, "dt": self.dt, "fixed_point": counters}
+
+    def tree(self, owned: int) -> dict:
+        """The arrays of this rank as nested dicts (``owned``: owned nodes * gdim)."""
+        sinks = {
+            name: {
+                "mass": np.array(k.mass), "momentum": np.asarray(k.momentum), "count": np.array(k.count),
+                "history": np.array(k.history, dtype=np.float64).reshape(-1, 2),
+            }
+            for name, k in self.sinks.items()
+        }  # fmt: skip
+        return {
+            "particles": dict(self.particles.arrays()),
+            "sinks": sinks,
+            "nonlocal": self.average.state() if self.average is not None else {},
+            "R_changes": np.array(self.R_changes, dtype=np.float64).reshape(len(self.R_changes), owned),
+        }
+
+    def fits(self, tree: dict) -> bool:
+        """Whether ``tree`` (from :meth:`tree`) has this state's particle fields and sinks."""
+        arrays = dict(tree["particles"])
+        state = arrays.pop("state", {})
+        P = self.particles
+        return (
+            set(arrays) == set(Particles._fields)
+            and set(state) == set(P.state)
+            and set(tree["sinks"]) == set(self.sinks)
+        )
+
+    def restore(self, scalars: dict, tree: dict) -> None:
+        """Take the values of :meth:`scalars` and :meth:`tree` (it must :meth:`fit <fits>`)."""
+        P, arrays = self.particles, dict(tree["particles"])
+        state = arrays.pop("state", {})
+        for name, a in arrays.items():
+            setattr(P, name, np.ascontiguousarray(a))
+        P.state = {name: np.ascontiguousarray(a) for name, a in state.items()}
+        for name, rec in tree["sinks"].items():
+            sink = self.sinks[name]
+            sink.mass, sink.count = float(rec["mass"]), int(rec["count"])
+            sink.momentum = np.array(rec["momentum"], dtype=np.float64)
+            sink.history = [(float(t), float(m)) for t, m in rec["history"]]
+        if self.average is not None:
+            self.average.restore(tree["nonlocal"])
+        self.R_changes = list(np.array(tree["R_changes"], dtype=np.float64))
+        self.time, self.step, self.dt = float(scalars["time"]), int(scalars["step"]), float(scalars["dt"])
+        self.fixed_point.update(zip(FIXED_POINT_STATISTICS, (int(v) for v in scalars["fixed_point"])))

@@ -1,0 +1,350 @@
+"""One explicit MPM step, the paper's §3, as a fixed sequence of stages.
+
+    sinks -> locate [-> migrate] -> basis -> P2G [-> neighbours]
+      -> loop { nodal solve -> G2P -> return mapping [-> averaging] -> stress [-> R, test] }
+      -> move
+
+P2G gives the lumped mass, the momentum, the external force ``F`` and the internal force ``R``
+of the stresses at the start of the step. Each iterate of the loop solves ``M a = F + F_c - R``
+with the latest ``R`` (eq. 4), maps the velocities to the particles, runs each material's
+return mapping (trial stress -> increment ``de``), averages the increments over the radius r
+(``de_bar``, eqs. 2, 3, 5), evaluates the stresses with them and, from those, ``R`` again. The
+loop ends when ``R`` (and with it ``F_c``; ``F`` is fixed) changes by less than
+``fixed_point_tol`` relative to ``max(|R|, |F|)``; the iterates are mixed with ``relaxation``
+and Anderson acceleration. The local model is the loop's single pass, with no average and no
+test. The first iterate is ``R`` of the start-of-step stresses (the paper's, order 0) plus the
+change of ``R`` the stress update made in the last step (order 1) or extrapolated over the last
+two (order 2): the fixed point is the same, the loop starts closer to it.
+
+Each stage is a function of what it reads, returning what it writes; only :func:`advance`
+changes the :class:`~dolfin_mpm.core.state.State`, after the loop. The grid's Functions serve
+as assembly buffers and hold the step's nodal fields for output at its end.
+"""
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from mpi4py import MPI
+
+from dolfin_mpm.core.anderson import Anderson
+from dolfin_mpm.core.grid import Grid
+from dolfin_mpm.core.locate import Basis, basis_at, locate
+from dolfin_mpm.core.options import Options
+from dolfin_mpm.core.particles import Particles
+from dolfin_mpm.core.state import State
+from dolfin_mpm.core.timer import Timer
+from dolfin_mpm.core.transfer import gradient, internal_force, interpolate, scatter, volume_ratio
+from dolfin_mpm.parallel.migration import migrate
+
+__all__ = ["STAGES", "Model", "Nodal", "SimulationError", "advance", "p2g"]
+
+#: The stages of :func:`advance` in their order; each step's times add up to the step.
+STAGES = (
+    "sinks", "locate", "migrate", "basis", "p2g", "neighbours", "nodal_solve", "g2p",
+    "return_mapping", "averaging", "stress", "internal_force", "convergence", "move",
+)  # fmt: skip
+
+
+class SimulationError(RuntimeError):
+    """A run that went bad (non-finite state, particle lost); names the step and the particle."""
+
+
+@dataclass
+class Model:
+    """What does not change from step to step (walls and damping may change between steps).
+
+    Attributes:
+        grid: background grid.
+        materials: constitutive models; ``particles.material`` indexes them.
+        bcs: nodal boundary conditions, applied in order.
+        gravity: body force per unit mass [m/s^2], ``shape=(gdim,)``.
+        options: numerical options.
+
+    """
+
+    grid: Grid
+    materials: list
+    bcs: list
+    gravity: np.ndarray
+    options: Options
+
+    def apply_bcs(self, v: np.ndarray) -> None:
+        """Correct nodal velocities ``v`` (``shape=(num_nodes, gdim)``) in place."""
+        for bc in self.bcs:
+            bc.apply(v)
+
+
+@dataclass
+class Nodal:
+    """What P2G gives the loop: nodal arrays of this rank's nodes (owned first, then ghosts).
+
+    Attributes:
+        mass: lumped mass [kg], ``shape=(num_nodes,)``.
+        inv_mass: ``1 / mass`` at nodes heavier than ``mass_tol * max mass``, else 0.
+        momentum: [kg m/s], ``shape=(num_nodes, gdim)``.
+        f_ext: external force ``F`` [N], ``shape=(num_nodes * gdim,)``.
+        f_int: internal force ``R`` of the start-of-step stresses [N], same shape.
+
+    """
+
+    mass: np.ndarray
+    inv_mass: np.ndarray
+    momentum: np.ndarray
+    f_ext: np.ndarray
+    f_int: np.ndarray
+
+
+# -- stages ----------------------------------------------------------------------------------------
+def p2g(model: Model, P: Particles, basis: Basis) -> Nodal:
+    """Lumped mass, momentum, ``F = m g`` and ``R`` at the nodes, assembled over ranks."""
+    grid = model.grid
+    m = grid.assemble(grid.mass, scatter(basis, P.mass))
+    momentum = grid.assemble(grid.momentum, scatter(basis, _momenta(P.mass, P.v)))
+    grid.f_ext.x.array[:] = (m[:, None] * model.gravity).ravel()  # from the assembled mass
+    f_int = grid.assemble(grid.f_int, internal_force(basis, P.sigma, P.volume))
+    m_max = grid.comm.allreduce(m.max() if m.size else 0.0, MPI.MAX)
+    active = m > model.options.mass_tol * m_max
+    inv_m = np.zeros_like(m)
+    inv_m[active] = 1.0 / m[active]
+    return Nodal(m, inv_m, momentum, grid.f_ext.x.array, f_int.ravel().copy())
+
+
+def nodal_solve(model: Model, nodal: Nodal, R: np.ndarray, dt: float) -> tuple[np.ndarray, ...]:
+    """Nodal velocities at the end of the step from ``M a = F + F_c - R``.
+
+    ``F_c`` is the force the boundary conditions need against ``F - R`` (the reaction).
+    Damping then acts on the out-of-balance force ``F + F_c - R``, so that it neither enters
+    the reaction nor resists the motion a boundary condition prescribes.
+
+    Returns:
+        The velocity, the acceleration and ``F_c``, each ``shape=(num_nodes, gdim)``.
+
+    """
+    gdim, damping = model.grid.gdim, model.options.damping
+    inv_m = nodal.inv_mass[:, None]
+    m = nodal.mass[:, None]
+    v = nodal.momentum * inv_m
+    f = (nodal.f_ext - R).reshape(-1, gdim)
+    v_trial = v + dt * f * inv_m
+    v_new = v_trial.copy()
+    model.apply_bcs(v_new)
+    f_contact = m * (v_new - v_trial) / dt
+    if damping > 0.0:
+        f_out = f + f_contact
+        v_new = v + dt * (f_out - damping * np.abs(f_out) * np.sign(v)) * inv_m
+        model.apply_bcs(v_new)
+    return v_new, (v_new - v) / dt, f_contact
+
+
+def g2p(
+    model: Model, P: Particles, basis: Basis, nodal: Nodal, v_node: np.ndarray, a_node: np.ndarray, dt: float
+) -> tuple[np.ndarray, ...]:
+    """Particle velocities and velocity gradients from the grid, without moving the particles.
+
+    With MUSL the new particle momenta are mapped back to the nodes (through the buffer
+    ``grid.velocity``) and the strain rate comes from those velocities.
+
+    Returns:
+        The new particle velocities (PIC/FLIP blend) and the grid velocity at the particles that
+        moves them, both ``shape=(n, gdim)``; the velocity gradient ``shape=(n, gdim, gdim)``;
+        and the nodal velocity it came from, ``shape=(num_nodes, gdim)``.
+
+    """
+    flip, grid = model.options.flip, model.grid
+    v_interp = interpolate(basis, v_node)
+    if flip == 1.0:
+        v = P.v + dt * interpolate(basis, a_node)
+    elif flip > 0.0:
+        v = flip * (P.v + dt * interpolate(basis, a_node)) + (1.0 - flip) * v_interp
+    else:
+        v = v_interp
+    if model.options.scheme == "MUSL":
+        v_node = grid.assemble(grid.velocity, scatter(basis, _momenta(P.mass, v))) * nodal.inv_mass[:, None]
+        model.apply_bcs(v_node)
+    return v, v_interp, gradient(basis, v_node), v_node
+
+
+class Constitutive:
+    """The stress update split as the materials are: trial -> increment -> [average] -> stress.
+
+    Particles are grouped by material once per step; with one material there is one group
+    and no copying.
+    """
+
+    def __init__(self, materials: list, P: Particles):
+        self.materials = materials
+        if len(materials) == 1:
+            self.groups = [(materials[0], slice(None), P.state)]
+        else:
+            self.groups = []
+            for k, material in enumerate(materials):
+                idx = np.flatnonzero(P.material == k)
+                state = {name: P.state[name][idx] for name in material.state_fields()}
+                self.groups.append((material, idx, state))
+
+    def increments(self, P: Particles, L: np.ndarray, dt: float) -> tuple[list, np.ndarray]:
+        """Each group's trial state and every particle's local increment ``de``, ``shape=(n,)``."""
+        trials, parts = [], []
+        for material, idx, state in self.groups:
+            trial = material.trial(P.sigma[idx], L[idx], dt)
+            trials.append(trial)
+            parts.append(material.increment(trial, state, dt))
+        if len(parts) == 1:
+            return trials, parts[0]
+        de = np.empty(len(P))
+        for (_, idx, _), part in zip(self.groups, parts):
+            de[idx] = part
+        return trials, de
+
+    def stresses(self, P: Particles, trials: list, de: np.ndarray, de_bar: np.ndarray | None) -> np.ndarray:
+        """The stresses with the local and (if any) non-local increments, ``shape=(n, 3, 3)``."""
+        if len(self.groups) == 1:
+            return self.materials[0].stress(trials[0], de, de_bar)
+        sigma = np.empty_like(P.sigma)
+        for (material, idx, _), trial in zip(self.groups, trials):
+            sigma[idx] = material.stress(trial, de[idx], None if de_bar is None else de_bar[idx])
+        return sigma
+
+    def record(self, P: Particles, de: np.ndarray, de_bar: np.ndarray | None, dt: float) -> None:
+        """Each material's state after the step (into ``P.state``)."""
+        de_bar = de if de_bar is None else de_bar
+        for material, idx, state in self.groups:
+            material.record(state, de[idx], de_bar[idx], dt)
+            if len(self.groups) > 1:
+                for name, a in state.items():
+                    P.state[name][idx] = a
+
+
+# -- the step ----------------------------------------------------------------------------------
+def advance(model: Model, state: State, timer: Timer) -> None:
+    """Advance ``state`` by one time step ``state.dt``; stage times go to ``timer``."""
+    grid, options, P, dt = model.grid, model.options, state.particles, state.dt
+    comm, average = grid.comm, state.average
+    timer.start()
+    for sink in state.sinks.values():
+        if sink.region is not None:
+            sink.absorb(P, np.asarray(sink.region(P.x.T), dtype=bool), state.time)
+    timer.lap("sinks")
+    cells, N = locate(grid, P.x, P.cell)
+    timer.lap("locate")
+    if comm.size > 1:
+        sent = migrate(grid, P, cells)
+        state.migrated += sent
+        if sent:
+            cells, N = locate(grid, P.x, P.cell)
+        timer.lap("migrate")
+    cells, N = _leave_grid(options, state, cells, N)
+    P.cell = cells
+    basis = basis_at(grid, cells, N)
+    timer.lap("basis")
+    nodal = p2g(model, P, basis)
+    timer.lap("p2g")
+    if average is not None:
+        average.update(P.x[:, : grid.gdim], P.volume, P.id)
+        timer.lap("neighbours")
+
+    owned = grid.num_owned_nodes * grid.gdim
+    R_start = R_in = nodal.f_int[:owned].copy()
+    R_node = nodal.f_int  # with ghosts: what the nodal solve reads
+    if average is not None and state.R_changes and options.extrapolation:
+        R_in = R_start + _predicted_change(state.R_changes, options.extrapolation)
+        R_node = grid.refresh_ghosts(grid.f_int, R_in)
+    scale_F = math.sqrt(comm.allreduce(float(nodal.f_ext[:owned] @ nodal.f_ext[:owned]), MPI.SUM))
+    constitutive = Constitutive(model.materials, P)
+    mixer = Anderson(options.anderson_depth, comm)
+    converged = average is None
+    for k in range(1, (1 if average is None else options.fixed_point_max_iter) + 1):
+        v_node, a_node, f_contact = nodal_solve(model, nodal, R_node, dt)
+        timer.lap("nodal_solve")
+        v, v_grid, L, v_node = g2p(model, P, basis, nodal, v_node, a_node, dt)
+        timer.lap("g2p")
+        trials, de = constitutive.increments(P, L, dt)
+        timer.lap("return_mapping")
+        de_bar = None
+        if average is not None:
+            de_bar = average(de)
+            timer.lap("averaging")
+        sigma = constitutive.stresses(P, trials, de, de_bar)
+        volume = P.volume * volume_ratio(L, dt)
+        timer.lap("stress")
+        if average is None:
+            break
+        R = grid.assemble(grid.f_int, internal_force(basis, sigma, volume)).ravel()[:owned].copy()
+        timer.lap("internal_force")
+        norms = comm.allreduce(np.array([(R - R_in) @ (R - R_in), R @ R]), MPI.SUM)
+        converged = math.sqrt(norms[0]) <= options.fixed_point_tol * max(math.sqrt(norms[1]), scale_F, 1e-300)
+        if not converged:
+            R_next = R_in + options.relaxation * (R - R_in)
+            R_in = mixer(R_in, R_next)  # depth 0: R_next itself
+            R_node = grid.refresh_ghosts(grid.f_int, R_in)
+        timer.lap("convergence")
+        if converged:
+            break
+
+    if average is not None:
+        stats = state.fixed_point
+        stats["steps"] += 1
+        stats["iterations"] += k
+        stats["max_iterations"] = max(stats["max_iterations"], k)
+        stats["unconverged"] += not converged
+        if options.extrapolation:
+            state.R_changes = [R - R_start, *state.R_changes][: options.extrapolation]
+        grid.f_int.x.array[:owned] = R  # the R of the stresses the step ends with
+        grid.f_int.x.scatter_forward()
+    P.sigma, P.volume = sigma, volume
+    constitutive.record(P, de, de_bar, dt)
+    P.v = v
+    for c in range(grid.gdim):  # by columns: numpy is slow over short rows
+        P.x[:, c] += dt * v_grid[:, c]
+    for f, a in ((grid.velocity, v_node), (grid.acceleration, a_node), (grid.f_contact, f_contact)):
+        f.x.array[:] = a.ravel()
+    state.time += dt
+    state.step += 1
+    _check_finite(state)
+    timer.lap("move")
+
+
+def _leave_grid(options: Options, state: State, cells: np.ndarray, N: np.ndarray):
+    """Particles outside the grid: an error, or absorbed by the ``on_exit`` sink."""
+    lost = cells < 0
+    if not np.any(lost):
+        return cells, N
+    P = state.particles
+    if options.on_exit == "error":
+        i = np.flatnonzero(lost)[0]
+        raise SimulationError(
+            f"step {state.step}, t = {state.time:.6g} s: particle {P.id[i]} left the "
+            f"grid at x = {P.x[i]} ({lost.sum()} particles outside)"
+        )
+    state.sinks[options.on_exit].absorb(P, lost, state.time)
+    return cells[~lost], N[:, ~lost]
+
+
+def _predicted_change(R_changes: list[np.ndarray], order: int) -> np.ndarray:
+    """The change of the owned ``R`` in this step, extrapolated from the last steps' changes."""
+    dR = R_changes[:order]
+    return 2.0 * dR[0] - dR[1] if len(dR) == 2 else dR[0]
+
+
+def _momenta(mass: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """The particles' momenta ``m_p v_p`` for velocities ``v``, ``shape=(n, gdim)``."""
+    out = np.empty_like(v)
+    for c in range(v.shape[1]):  # by columns: numpy is slow over short rows
+        np.multiply(mass, v[:, c], out=out[:, c])
+    return out
+
+
+def _check_finite(state: State) -> None:
+    P = state.particles
+    if np.isfinite(P.sigma.sum() + P.v.sum() + P.x.sum()) and np.all(P.volume > 0.0):
+        return  # finite sums have finite terms (an overflowing sum only costs the full check)
+    bad = ~(
+        np.isfinite(P.sigma).all(axis=(1, 2)) & np.isfinite(P.v).all(axis=1) & np.isfinite(P.x).all(axis=1)
+    )
+    bad |= ~(P.volume > 0.0)
+    i = np.flatnonzero(bad)[0]
+    raise SimulationError(
+        f"step {state.step}, t = {state.time:.6g} s: particle {P.id[i]} at x = {P.x[i]} "
+        f"has non-finite stress or velocity, or non-positive volume ({bad.sum()} particles)"
+    )
