@@ -9,14 +9,18 @@ import dolfin_mpm as dm
 SAND = {"E": 1e6, "nu": 0.3, "rho": 1500.0, "phi": 30.0, "gamma": 1e3}
 
 
-def collapse(averaging, steps=150, **kwargs):
+def collapse(averaging, steps=150, halves=False, **kwargs):
     grid = dm.Grid(rectangle((0, 0), (0.3, 0.15), (30, 15)))
     sand = dm.DruckerPragerViscoplastic(**SAND)
     P = dm.seed(grid, sand, ppc=4, where=lambda x: (x[0] < 0.1) & (x[1] < 0.1))
     floor = grid.nodes_where(lambda x: np.isclose(x[1], 0.0))
     wall = grid.nodes_where(lambda x: np.isclose(x[0], 0.0))
     bcs = [dm.FrictionalWall(floor, normal=(0, -1), mu=0.4), dm.SlipBC(wall, normal=(1, 0))]
-    solver = dm.Solver(grid, P, sand, bcs=bcs, gravity=(0, -9.81), averaging=averaging, **kwargs)
+    materials = sand
+    if halves:  # the same sand as two materials, the upper half the second
+        materials = [sand, dm.DruckerPragerViscoplastic(**SAND)]
+        P.material[P.x[:, 1] > 0.05] = 1
+    solver = dm.Solver(grid, P, materials, bcs=bcs, gravity=(0, -9.81), averaging=averaging, **kwargs)
     for _ in range(steps):
         solver.step()
     return solver
@@ -27,6 +31,19 @@ def test_zero_radius_is_the_local_model():
     zero = collapse(dm.NonlocalAverage(0.0), steps=60)
     assert np.array_equal(local.particles.sigma, zero.particles.sigma)
     assert zero.fixed_point["steps"] == 0  # r = 0 switches the loop off
+
+
+def test_averaging_over_several_materials_is_that_of_one():
+    """The step groups particles by material for the return mapping and averages over all: the
+    same sand declared as two materials takes the single material's steps bit for bit."""
+    one = collapse(dm.NonlocalAverage(0.02), steps=40)
+    two = collapse(dm.NonlocalAverage(0.02), steps=40, halves=True)
+    assert 0 < two.particles.material.sum() < len(two.particles)
+    assert two.fixed_point == one.fixed_point and one.fixed_point["iterations"] > 40
+    for name in ("x", "v", "sigma", "volume"):
+        assert np.array_equal(getattr(two.particles, name), getattr(one.particles, name))
+    for name, a in one.particles.state.items():
+        assert np.array_equal(two.particles.state[name], a)
 
 
 def test_first_iterate_is_the_explicit_step():

@@ -28,6 +28,7 @@ from dolfin_mpm.averaging.nonlocal_average import WEIGHTS, NonlocalAverage
 from dolfin_mpm.core import compat
 from dolfin_mpm.core.boundary import BoundaryCondition, FixedBC, FrictionalWall, SlipBC, VelocityBC
 from dolfin_mpm.core.grid import Grid
+from dolfin_mpm.core.options import INTEGERS, SCHEMES, Options
 from dolfin_mpm.core.particles import Sink
 from dolfin_mpm.core.seeding import geostatic_stress, reference_points, seed
 from dolfin_mpm.core.solver import Solver
@@ -48,18 +49,14 @@ MODELS = {
 }
 _WALLS = ("fixed", "slip", "frictional", "velocity")
 _DIAGONALS = ("right", "left", "crossed", "right/left", "left/right")
-_SOLVER = {  # name: (kind, default, interval or choices)
-    "scheme": ("string", "MUSL", ("MUSL", "USL")),
-    "flip": ("number", 1.0, Range(0.0, 1.0, closed=(True, True))),
-    "damping": ("number", 0.0, Range(0.0, 1.0, closed=(True, False))),
-    "courant": ("number", 0.5, Range(0.0, 1.0, closed=(False, True))),
-    "dt": ("number", None, Range(0.0, INF, "s")),
-    "mass_tol": ("number", 1e-10, Range(0.0, 1.0, closed=(True, False))),
-    "fixed_point_tol": ("number", 1e-3, Range(0.0, INF)),
-    "fixed_point_max_iter": ("integer", 50, Range(1, INF, closed=(True, False))),
-    "relaxation": ("number", 1.0, Range(0.0, 1.0, closed=(False, True))),
-    "anderson_depth": ("integer", 5, Range(0, INF, closed=(True, False))),
-    "extrapolation": ("integer", 2, Range(0, 2, closed=(True, True))),
+#: The ``[solver]`` options but ``gravity`` and ``on_exit``: (kind, default, interval or
+#: choices), as :class:`~dolfin_mpm.core.options.Options` declares them.
+_SOLVER = {
+    "scheme": ("string", Options.scheme, SCHEMES),
+    **{
+        name: ("integer" if name in INTEGERS else "number", p.default, p.range)
+        for name, p in parameters(Options).items()
+    },
 }
 _PARTICLE_FIELDS = ("speed", "p", "q", "mass", "volume")
 
@@ -397,15 +394,16 @@ def _nonlocal(c: _Checker, t: dict | None, materials: dict) -> dict:
         return {"radius": 0.0, "weight": "cubic", "skin": None}
     c.keys(t, "nonlocal", ("radius", "weight", "skin"))
     n = {
-        "radius": c.value(t, "nonlocal", "radius", "number", 0.0, True, Range(0.0, INF, "m", (True, False))),
+        "radius": c.value(t, "nonlocal", "radius", "number", 0.0, True, NonlocalAverage.RADIUS),
         "weight": c.value(t, "nonlocal", "weight", "string", "cubic", check=tuple(WEIGHTS)),
-        "skin": c.value(t, "nonlocal", "skin", "number", None, check=Range(0.0, INF, "m", (True, False))),
+        "skin": c.value(t, "nonlocal", "skin", "number", None, check=NonlocalAverage.SKIN),
     }
     models = [m["model"] for m in materials.values()]
-    if n["radius"] > 0.0 and models != ["drucker_prager"]:
+    if n["radius"] > 0.0 and not any(MODELS[m][0].plastic for m in models if m in MODELS):
+        plastic = [name for name, (cls, _) in MODELS.items() if cls.plastic]
         c.fail(
             "nonlocal.radius",
-            f"averaging needs exactly one material of model drucker_prager, got {_show(models)}",
+            f"averaging needs a plastic material ({', '.join(plastic)}), got {_show(models)}",
         )
     return n
 

@@ -31,7 +31,7 @@ from scipy.spatial import cKDTree
 
 from dolfin_mpm import native
 from dolfin_mpm.core.particles import IdIndex
-from dolfin_mpm.params import check_range
+from dolfin_mpm.params import Range
 
 __all__ = ["WEIGHTS", "NonlocalAverage"]
 
@@ -98,12 +98,15 @@ class NonlocalAverage:
 
     """
 
+    #: The allowed radius and skin [m].
+    RADIUS = SKIN = Range(0.0, math.inf, "m", (True, False))
+
     def __init__(self, radius: float, weight: str = "cubic", skin: float | None = None):
-        check_range("radius", radius, 0.0, np.inf, closed=(True, False))
+        self.RADIUS.check("radius", radius)
         if weight not in WEIGHTS:
             raise ValueError(f"weight must be one of {sorted(WEIGHTS)}, got {weight!r}")
         skin = 0.25 * radius if skin is None else skin
-        check_range("skin", skin, 0.0, np.inf, closed=(True, False))
+        self.SKIN.check("skin", skin)
         self.radius, self.weight, self.skin = float(radius), weight, float(skin)
         self._slot_ids = None
         self._pairs = _Pairs.empty(0, 0)
