@@ -22,7 +22,7 @@ import numpy as np
 from dolfinx import mesh
 from mpi4py import MPI
 
-from dolfin_mpm.core.step import STAGES
+from dolfin_mpm.explicit.step import STAGES
 
 
 def block_case(n_particles: int, material, **solver_args) -> dm.Solver:

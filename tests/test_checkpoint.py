@@ -20,7 +20,7 @@ from mpi4py import MPI
 from dolfin_mpm import NonlocalAverage
 from dolfin_mpm.app import scenario
 from dolfin_mpm.app.cli import main
-from dolfin_mpm.core.progress import Progress
+from dolfin_mpm.explicit.progress import Progress
 from dolfin_mpm.io import checkpoint
 
 # Sand falls through a plate that opens at t = 5 ms into a sink: non-local averaging with

@@ -10,8 +10,8 @@ from mpi4py import MPI
 
 import dolfin_mpm as dm
 from dolfin_mpm.core.locate import basis_at, locate
-from dolfin_mpm.core.step import p2g
 from dolfin_mpm.core.transfer import gradient, internal_force, interpolate, scatter, volume_ratio
+from dolfin_mpm.explicit.step import p2g
 from dolfin_mpm.materials.tensor import component_first, particle_first
 
 EPS = np.finfo(np.float64).eps

@@ -160,8 +160,8 @@ def test_block_sliding_on_a_frictional_floor_decelerates_at_mu_g(mu):
 def test_stage_times_do_not_overlap_and_add_up_to_the_step(monkeypatch):
     """Each instant of a step is charged to exactly one stage: with a clock that ticks once per
     reading, the stages sum to the readings after the first, and only known stages appear."""
-    from dolfin_mpm.core import timer
-    from dolfin_mpm.core.step import STAGES
+    from dolfin_mpm.explicit import timer
+    from dolfin_mpm.explicit.step import STAGES
 
     grid = dm.Grid(rectangle((0, 0), (1, 1), (4, 4)))
     mat = dm.DruckerPragerViscoplastic(E=1e6, nu=0.3, rho=1500.0, phi=30.0, gamma=1e3)

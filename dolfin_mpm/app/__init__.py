@@ -1,1 +1,1 @@
-"""Scenario files and the command line: validation, the run driver, progress, regions."""
+"""Scenario files and the command line: validation, runs with events, output and checkpoints, regions."""

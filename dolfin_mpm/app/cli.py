@@ -18,7 +18,7 @@ from mpi4py import MPI
 
 from dolfin_mpm.app import scenario
 from dolfin_mpm.app.runner import CHECKPOINT, Interrupted, RunError, Runner, print_root, write_run_info
-from dolfin_mpm.core.solver import SimulationError
+from dolfin_mpm.explicit.solver import SimulationError
 from dolfin_mpm.io import checkpoint
 
 __all__ = ["main"]

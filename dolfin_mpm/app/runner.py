@@ -19,7 +19,7 @@ import numpy as np
 from mpi4py import MPI
 
 from dolfin_mpm.app.scenario import Simulation
-from dolfin_mpm.core.progress import Progress
+from dolfin_mpm.explicit.progress import Progress
 from dolfin_mpm.io import checkpoint
 from dolfin_mpm.io.xdmf import Output
 from dolfin_mpm.post.figures import field_values, plot_curves, plot_particles

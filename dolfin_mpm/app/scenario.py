@@ -28,10 +28,10 @@ from dolfin_mpm.averaging.nonlocal_average import WEIGHTS, NonlocalAverage
 from dolfin_mpm.core import compat
 from dolfin_mpm.core.boundary import BoundaryCondition, FixedBC, FrictionalWall, SlipBC, VelocityBC
 from dolfin_mpm.core.grid import Grid
-from dolfin_mpm.core.options import INTEGERS, SCHEMES, Options
 from dolfin_mpm.core.particles import Sink
 from dolfin_mpm.core.seeding import geostatic_stress, reference_points, seed
-from dolfin_mpm.core.solver import Solver
+from dolfin_mpm.explicit.options import INTEGERS, SCHEMES, Options
+from dolfin_mpm.explicit.solver import Solver
 from dolfin_mpm.materials import DruckerPragerViscoplastic, LinearElastic
 from dolfin_mpm.parallel import partition
 from dolfin_mpm.params import Range, parameters
@@ -50,7 +50,7 @@ MODELS = {
 _WALLS = ("fixed", "slip", "frictional", "velocity")
 _DIAGONALS = ("right", "left", "crossed", "right/left", "left/right")
 #: The ``[solver]`` options but ``gravity`` and ``on_exit``: (kind, default, interval or
-#: choices), as :class:`~dolfin_mpm.core.options.Options` declares them.
+#: choices), as :class:`~dolfin_mpm.explicit.options.Options` declares them.
 _SOLVER = {
     "scheme": ("string", Options.scheme, SCHEMES),
     **{

@@ -30,10 +30,9 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from dolfin_mpm import native
-from dolfin_mpm.core.particles import IdIndex
 from dolfin_mpm.params import Range
 
-__all__ = ["WEIGHTS", "NonlocalAverage"]
+__all__ = ["WEIGHTS", "IdIndex", "NonlocalAverage"]
 
 #: The weights w(s), s = distance / r, zero for s >= 1: ``1 + s^2 (2s - 3)``, ``1`` and
 #: ``exp(-2.5 s^2)``; the value is the kernel's code for each.
@@ -52,6 +51,21 @@ _SIGNATURES = {
     ),
 }  # fmt: skip
 _kernels = native.kernels(Path(__file__).with_suffix(".c"), _SIGNATURES)
+
+
+class IdIndex:
+    """Where particle ids sit in the array ``ids`` (``shape=(n,)``, unique) it is made from."""
+
+    def __init__(self, ids: np.ndarray):
+        self._order = np.argsort(ids, kind="stable")
+        self._sorted = ids[self._order]
+
+    def __call__(self, ids: np.ndarray) -> np.ndarray:
+        """The index of each of ``ids`` in the array, -1 for those not in it."""
+        if len(self._sorted) == 0:
+            return np.full(len(ids), -1, dtype=np.intp)
+        k = np.minimum(np.searchsorted(self._sorted, ids), len(self._sorted) - 1)
+        return np.where(self._sorted[k] == ids, self._order[k], -1)
 
 
 @dataclass

@@ -1,1 +1,1 @@
-"""The MPM engine on DOLFINx: grid, particles, transfers, boundary conditions and the time step."""
+"""The MPM engine's parts on DOLFINx: grid, particles, locate, transfers, seeding, boundary conditions."""

@@ -7,7 +7,7 @@ import numpy as np
 
 from dolfin_mpm.materials.tensor import component_first, particle_first
 
-__all__ = ["IdIndex", "Particles", "Sink"]
+__all__ = ["Particles", "Sink"]
 
 
 class Particles:
@@ -92,21 +92,6 @@ class Particles:
                 self._set(name, particle_first(np.concatenate([component_first(a), component_first(b)], -1)))
             else:
                 self._set(name, np.concatenate([a, b]))
-
-
-class IdIndex:
-    """Where particle ids sit in the array ``ids`` (``shape=(n,)``, unique) it is made from."""
-
-    def __init__(self, ids: np.ndarray):
-        self._order = np.argsort(ids, kind="stable")
-        self._sorted = ids[self._order]
-
-    def __call__(self, ids: np.ndarray) -> np.ndarray:
-        """The index of each of ``ids`` in the array, -1 for those not in it."""
-        if len(self._sorted) == 0:
-            return np.full(len(ids), -1, dtype=np.intp)
-        k = np.minimum(np.searchsorted(self._sorted, ids), len(self._sorted) - 1)
-        return np.where(self._sorted[k] == ids, self._order[k], -1)
 
 
 def _component_first(a: np.ndarray) -> bool:

@@ -104,10 +104,8 @@ void internal_force(int64_t n, int32_t gdim, const int64_t *dofs, const double *
 void interpolate(int64_t n, int32_t nn, const int64_t *dofs, const double *N, int32_t k, const double *nodal,
                  double *out)
 {
-  if (nn == 3 && k == 2)
-    interpolate_of(n, 3, dofs, N, 2, nodal, out);
-  else if (nn == 4 && k == 3)
-    interpolate_of(n, 4, dofs, N, 3, nodal, out);
+  if (nn == k + 1 && (k == 2 || k == 3)) /* vectors of the mesh's dimension */
+    k == 2 ? interpolate_of(n, 3, dofs, N, 2, nodal, out) : interpolate_of(n, 4, dofs, N, 3, nodal, out);
   else
     interpolate_of(n, nn, dofs, N, k, nodal, out);
 }
@@ -115,10 +113,8 @@ void interpolate(int64_t n, int32_t nn, const int64_t *dofs, const double *N, in
 void gradient(int64_t n, int32_t gdim, const int64_t *dofs, const double *dN, int32_t k, const double *nodal,
               double *out)
 {
-  if (gdim == 2 && k == 2)
-    gradient_of(n, 2, dofs, dN, 2, nodal, out);
-  else if (gdim == 3 && k == 3)
-    gradient_of(n, 3, dofs, dN, 3, nodal, out);
+  if (k == gdim && (k == 2 || k == 3)) /* the velocity gradient */
+    k == 2 ? gradient_of(n, 2, dofs, dN, 2, nodal, out) : gradient_of(n, 3, dofs, dN, 3, nodal, out);
   else
     gradient_of(n, gdim, dofs, dN, k, nodal, out);
 }

@@ -1,6 +1,6 @@
 """Checkpoints: everything a run carries from one step to the next, in one HDF5 file.
 
-The solver's :class:`~dolfin_mpm.core.state.State` (per rank: every particle array, ``cell``
+The solver's :class:`~dolfin_mpm.explicit.state.State` (per rank: every particle array, ``cell``
 and the material state included, the sinks' records, the non-local average's reference
 positions and on several ranks its halo, the last changes of the internal forces; for the run:
 time, step, time step and the fixed-point counters) and the scenario's own: the events applied
@@ -97,7 +97,7 @@ def read(path, comm) -> dict:
 
     Returns:
         ``{"attrs": ..., "history": ..., "nodes": ...}`` and this rank's part of the state
-        (see :meth:`State.tree <dolfin_mpm.core.state.State.tree>`).
+        (see :meth:`State.tree <dolfin_mpm.explicit.state.State.tree>`).
 
     Raises:
         CheckpointError: missing or unreadable file, or written by another number of ranks.

@@ -11,7 +11,7 @@ import time
 import numpy as np
 from mpi4py import MPI
 
-from dolfin_mpm.core.particles import IdIndex
+from dolfin_mpm.averaging.nonlocal_average import IdIndex
 
 __all__ = ["DistributedAverage", "Halo", "over_ranks"]
 

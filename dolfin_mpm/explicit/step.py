@@ -17,7 +17,7 @@ change of ``R`` the stress update made in the last step (order 1) or extrapolate
 two (order 2): the fixed point is the same, the loop starts closer to it.
 
 Each stage is a function of what it reads, returning what it writes; only :func:`advance`
-changes the :class:`~dolfin_mpm.core.state.State`, after the loop. The grid's Functions serve
+changes the :class:`~dolfin_mpm.explicit.state.State`, after the loop. The grid's Functions serve
 as assembly buffers and hold the step's nodal fields for output at its end.
 """
 
@@ -27,14 +27,14 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 
-from dolfin_mpm.core.anderson import Anderson
 from dolfin_mpm.core.grid import Grid
 from dolfin_mpm.core.locate import Basis, basis_at, locate
-from dolfin_mpm.core.options import Options
 from dolfin_mpm.core.particles import Particles
-from dolfin_mpm.core.state import State
-from dolfin_mpm.core.timer import Timer
 from dolfin_mpm.core.transfer import gradient, internal_force, interpolate, scatter, volume_ratio
+from dolfin_mpm.explicit.anderson import Anderson
+from dolfin_mpm.explicit.options import Options
+from dolfin_mpm.explicit.state import State
+from dolfin_mpm.explicit.timer import Timer
 from dolfin_mpm.parallel.migration import migrate
 
 __all__ = ["STAGES", "Model", "Nodal", "SimulationError", "advance", "p2g"]

@@ -1,9 +1,9 @@
 """The explicit material point solver: a model, the run's state, the step and the run loop.
 
-:class:`Solver` checks its input, builds the :class:`~dolfin_mpm.core.step.Model` (grid,
-materials, walls, gravity, options) and the :class:`~dolfin_mpm.core.state.State` (particles,
+:class:`Solver` checks its input, builds the :class:`~dolfin_mpm.explicit.step.Model` (grid,
+materials, walls, gravity, options) and the :class:`~dolfin_mpm.explicit.state.State` (particles,
 sinks, time, the non-local average, the loop's history), and advances the state with
-:func:`dolfin_mpm.core.step.advance`. :meth:`Solver.run_until` is the one run loop: the
+:func:`dolfin_mpm.explicit.step.advance`. :meth:`Solver.run_until` is the one run loop: the
 scenario runner and :meth:`Solver.run` both drive it.
 """
 
@@ -17,12 +17,12 @@ from mpi4py import MPI
 from dolfin_mpm.averaging import NonlocalAverage
 from dolfin_mpm.core.boundary import BoundaryCondition
 from dolfin_mpm.core.grid import Grid
-from dolfin_mpm.core.options import Options
 from dolfin_mpm.core.particles import Particles, Sink
-from dolfin_mpm.core.progress import Progress
-from dolfin_mpm.core.state import State
-from dolfin_mpm.core.step import Model, SimulationError, advance
-from dolfin_mpm.core.timer import Timer
+from dolfin_mpm.explicit.options import Options
+from dolfin_mpm.explicit.progress import Progress
+from dolfin_mpm.explicit.state import State
+from dolfin_mpm.explicit.step import Model, SimulationError, advance
+from dolfin_mpm.explicit.timer import Timer
 from dolfin_mpm.materials import Material
 from dolfin_mpm.parallel import ids
 from dolfin_mpm.parallel.halo import over_ranks
@@ -43,9 +43,9 @@ class Solver:
         gravity: body force per unit mass [m/s^2], ``shape=(gdim,)``; default zero.
         sinks: sinks absorbing particles in their regions each step.
         averaging: non-local average of the plastic strain increments; switches on the
-            paper's fixed-point loop (see :mod:`dolfin_mpm.core.step`). ``None`` or radius 0:
+            paper's fixed-point loop (see :mod:`dolfin_mpm.explicit.step`). ``None`` or radius 0:
             local.
-        **options: the step's numerical options, :class:`~dolfin_mpm.core.options.Options`
+        **options: the step's numerical options, :class:`~dolfin_mpm.explicit.options.Options`
             (``dt``, ``courant``, ``scheme``, ``flip``, ``damping``, ``on_exit``, ...).
 
     """

@@ -33,7 +33,7 @@ class Options:
         fixed_point_max_iter: most iterates per step, >= 1.
         relaxation: under-relaxation of the ``R`` iterates, in (0, 1].
         anderson_depth: Anderson acceleration depth of the loop, >= 0 (0: plain iteration).
-        extrapolation: order 0, 1 or 2 of the loop's first iterate (see :mod:`dolfin_mpm.core.step`).
+        extrapolation: order 0, 1 or 2 of the loop's first iterate (see :mod:`dolfin_mpm.explicit.step`).
 
     """
 
