@@ -1,6 +1,7 @@
 """Particle arrays: removal, selection and appending keep every field aligned."""
 
 import numpy as np
+import pytest
 
 import dolfin_mpm as dm
 
@@ -47,3 +48,20 @@ def test_stress_written_component_first_stays_so():
     P.extend(Q)
     assert np.array_equal(P.sigma, values[[0, 2, 3, 4, 5, 6, 7, 8]]) and in_place(P.sigma)
     assert np.array_equal(P.id, [0, 2, 3, 4, 5, 6, 7, 8])
+
+
+def test_the_solver_numbers_particles_without_an_id_and_keeps_the_others():
+    from conftest import rectangle
+
+    grid = dm.Grid(rectangle((0, 0), (1, 1), (2, 2)))
+    mat = dm.LinearElastic(E=1e3, nu=0.3, rho=1.0)
+    P = dm.seed(grid, mat, ppc=1)
+    assert np.all(P.id == -1)  # not numbered until a solver takes them
+    P.id[:2] = [40, 7]
+    dm.Solver(grid, P, mat)
+    assert list(P.id[:2]) == [40, 7]
+    assert list(P.id[2:]) == list(range(41, 41 + len(P) - 2))
+    Q = dm.seed(grid, mat, ppc=1)
+    Q.id[:2] = 5
+    with pytest.raises(ValueError, match=r"particles\.id: .* repeat"):
+        dm.Solver(grid, Q, mat)

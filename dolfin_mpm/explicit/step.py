@@ -253,7 +253,7 @@ def advance(model: Model, state: State, timer: Timer) -> None:
     scale_F = math.sqrt(comm.allreduce(float(nodal.f_ext[:owned] @ nodal.f_ext[:owned]), MPI.SUM))
     constitutive = Constitutive(model.materials, P)
     mixer = Anderson(options.anderson_depth, comm)
-    converged = average is None
+    converged = False
     for k in range(1, (1 if average is None else options.fixed_point_max_iter) + 1):
         v_node, a_node, f_contact = nodal_solve(model, nodal, R_node, dt)
         timer.lap("nodal_solve")

@@ -34,6 +34,9 @@ __all__ = ["Material", "Trial"]
 class Trial:
     """Elastic predictor of one step (component-first arrays).
 
+    A trial gives one stress: :meth:`Material.stress` may build the stress in its arrays (the
+    elastic one does, to spare a copy of the deviator in every step).
+
     Attributes:
         p: pressure ``-tr(sigma)/3`` [Pa], ``shape=(n,)``.
         s: deviator [Pa], ``shape=(3, 3, n)``.
