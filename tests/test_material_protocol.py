@@ -62,7 +62,7 @@ def test_update_is_the_four_parts(name):
     mat = MATERIALS[name]
     assert isinstance(mat, Material)
     sigma, L, state = sample(mat)
-    ref_sigma, de, trial, ref_state = parts(mat, sigma, L, DT, state)
+    ref_sigma, de, _, ref_state = parts(mat, sigma, L, DT, state)
     new_state = copy(state)
     assert np.array_equal(mat.update(sigma, L, DT, new_state), ref_sigma)
     assert new_state.keys() == ref_state.keys() == mat.state_fields().keys()

@@ -244,16 +244,17 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         average.update(P.x[:, : grid.gdim], P.volume, P.id)
         timer.lap("neighbours")
 
-    owned = grid.num_owned_nodes * grid.gdim
-    R_start = R_in = nodal.f_int[:owned].copy()
     R_node = nodal.f_int  # with ghosts: what the nodal solve reads
-    if average is not None and state.R_changes and options.extrapolation:
-        R_in = R_start + _predicted_change(state.R_changes, options.extrapolation)
-        R_node = grid.refresh_ghosts(grid.f_int, R_in)
-    scale_F = math.sqrt(comm.allreduce(float(nodal.f_ext[:owned] @ nodal.f_ext[:owned]), MPI.SUM))
+    if average is not None:  # the loop's start: owned R, first iterate, scale of the test
+        owned = grid.num_owned_nodes * grid.gdim
+        R_start = R_in = nodal.f_int[:owned].copy()
+        if state.R_changes and options.extrapolation:
+            R_in = R_start + _predicted_change(state.R_changes, options.extrapolation)
+            R_node = grid.refresh_ghosts(grid.f_int, R_in)
+        scale_F = math.sqrt(comm.allreduce(float(nodal.f_ext[:owned] @ nodal.f_ext[:owned]), MPI.SUM))
+        mixer = Anderson(options.anderson_depth, comm)
+        converged = False
     constitutive = Constitutive(model.materials, P)
-    mixer = Anderson(options.anderson_depth, comm)
-    converged = False
     for k in range(1, (1 if average is None else options.fixed_point_max_iter) + 1):
         v_node, a_node, f_contact = nodal_solve(model, nodal, R_node, dt)
         timer.lap("nodal_solve")
@@ -290,8 +291,7 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         stats["unconverged"] += not converged
         if options.extrapolation:
             state.R_changes = [R - R_start, *state.R_changes][: options.extrapolation]
-        grid.f_int.x.array[:owned] = R  # the R of the stresses the step ends with
-        grid.f_int.x.scatter_forward()
+        grid.refresh_ghosts(grid.f_int, R)  # the R of the stresses the step ends with
     P.sigma, P.volume = sigma, volume
     constitutive.record(P, de, de_bar, dt)
     P.v = v
