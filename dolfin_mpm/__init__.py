@@ -38,7 +38,18 @@ _MODULES = {
     "partition": "dolfin_mpm.parallel.partition",
     **{
         name: f"dolfin_mpm.{name}"
-        for name in ("app", "averaging", "core", "fe", "io", "materials", "parallel", "post")
+        for name in (
+            "app",
+            "averaging",
+            "core",
+            "explicit",
+            "fe",
+            "io",
+            "native",
+            "parallel",
+            "params",
+            "post",
+        )
     },
 }
 

@@ -138,7 +138,11 @@ class Solver:
         advance(self.model, self.state, self.timer)
 
     def run_until(
-        self, t_end: float, actions: Sequence[tuple[int, Callable[[], None]]] = (), origin: int = 0
+        self,
+        t_end: float,
+        actions: Sequence[tuple[int, Callable[[], None]]] = (),
+        origin: int = 0,
+        steps: int | None = None,
     ):
         """Step until ``t_end`` [s]; the run loop of every driver.
 
@@ -148,10 +152,12 @@ class Solver:
             actions: ``(every, action)`` pairs: ``action()`` runs after each step whose number
                 counted from ``origin`` is a multiple of ``every`` (in the order given).
             origin: the step number the counts start from.
+            steps: take exactly this many steps instead (the count fixed before the run).
 
         """
         state = self.state
-        while (t_end - state.time) / state.dt > 1e-9:
+        last = None if steps is None else state.step + steps
+        while (t_end - state.time) / state.dt > 1e-9 if last is None else state.step < last:
             self.step()
             for every, action in actions:
                 if (state.step - origin) % every == 0:
@@ -170,23 +176,24 @@ class Solver:
         every = max(1, round(output_interval / self.dt)) if output_interval else max(n_steps, 1)
         bar = Progress(self.time, t_end, self.dt, enabled=progress and self.comm.rank == 0)
 
+        origin = self.step_count
+
         def show():
             due = bar.due()  # rank 0's clock: all ranks follow it, the count is collective
             if self.comm.size > 1:
                 due = self.comm.bcast(due, root=0)
-            if due:
-                bar.show(self.time, self.num_particles())
+            final = self.step_count - origin == n_steps
+            if due or final:
+                bar.show(self.time, self.num_particles(), final=final)
 
         actions = [(every, lambda: output.write(self))] if output is not None else []
         if progress:
             actions.append((1, show))
         if output is not None:
             output.write(self)
-        self.run_until(t_end, actions, origin=self.step_count)
+        self.run_until(t_end, actions, origin, steps=n_steps)
         if output is not None:
             output.write(self)  # once per time: a no-op when the last step wrote
-        if progress and n_steps > 0:
-            bar.show(self.time, self.num_particles(), final=True)
 
     # -- global diagnostics (summed over ranks) --------------------------------------------------
     def num_particles(self) -> int:

@@ -30,6 +30,3 @@ class Timer:
     def total(self) -> float:
         """Seconds of all stages [s]."""
         return sum(self.seconds.values())
-
-    def clear(self) -> None:
-        self.seconds.clear()

@@ -16,7 +16,13 @@ import numpy as np
 
 from dolfin_mpm import native
 from dolfin_mpm.materials.base import Material, Trial
-from dolfin_mpm.materials.tensor import component_first, deviator, particle_first
+from dolfin_mpm.materials.tensor import (
+    MANDEL_DEVIATORIC,
+    MANDEL_IDENTITY,
+    component_first,
+    deviator,
+    particle_first,
+)
 from dolfin_mpm.params import parameter
 
 __all__ = ["LinearElastic"]
@@ -29,9 +35,6 @@ _SIGNATURES = {
     ),
 }  # fmt: skip
 _kernels = native.kernels(Path(__file__).with_name("hypoelastic.c"), _SIGNATURES)
-
-_ONE = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])  # Mandel identity
-_I_DEV = np.eye(6) - np.outer(_ONE, _ONE) / 3.0  # Mandel deviatoric projector
 
 
 @dataclass(frozen=True)
@@ -103,7 +106,7 @@ class LinearElastic(Material):
 
     def tangent(self, trial, de, dt):
         """Elastic stiffness ``K 1x1 + 2 G I_dev`` [Pa], Mandel, ``shape=(n, 6, 6)``."""
-        D = self.K * np.outer(_ONE, _ONE) + 2.0 * self.G * _I_DEV
+        D = self.K * np.outer(MANDEL_IDENTITY, MANDEL_IDENTITY) + 2.0 * self.G * MANDEL_DEVIATORIC
         return np.broadcast_to(D, (len(trial.q), 6, 6)).copy()
 
     def strain_energy_density(self, sigma):

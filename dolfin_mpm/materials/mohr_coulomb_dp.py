@@ -39,12 +39,10 @@ import numpy as np
 
 from dolfin_mpm.materials.base import Trial
 from dolfin_mpm.materials.radial_return import RadialReturn, applied_increment
-from dolfin_mpm.materials.tensor import particle_first, to_mandel
+from dolfin_mpm.materials.tensor import MANDEL_IDENTITY, particle_first, to_mandel
 from dolfin_mpm.params import Range, parameter
 
 __all__ = ["MohrCoulombDruckerPrager"]
-
-_ONE = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])
 
 
 @dataclass(frozen=True)
@@ -133,7 +131,7 @@ class MohrCoulombDruckerPrager(RadialReturn):
         if M_g > 0.0:  # the pressure moves too: dp = dp_trial + K M_g d(dlam)
             norm = np.sqrt(2.0 / 3.0) * trial.q
             n = to_mandel(particle_first(trial.s))[act] / norm[act, None]
-            dlam_deps = (np.sqrt(6.0) * G * n + M * K * _ONE) / H
-            D[act] -= K * M_g * _ONE[None, :, None] * dlam_deps[:, None, :]
+            dlam_deps = (np.sqrt(6.0) * G * n + M * K * MANDEL_IDENTITY) / H
+            D[act] -= K * M_g * MANDEL_IDENTITY[None, :, None] * dlam_deps[:, None, :]
         D[apex] = 0.0
         return D

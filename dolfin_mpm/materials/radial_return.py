@@ -25,17 +25,13 @@ import numpy as np
 from dolfin_mpm import native
 from dolfin_mpm.materials.base import Trial
 from dolfin_mpm.materials.elastic import LinearElastic
-from dolfin_mpm.materials.tensor import particle_first, to_mandel
+from dolfin_mpm.materials.tensor import MANDEL_DEVIATORIC, MANDEL_IDENTITY, particle_first, to_mandel
 
 __all__ = ["RadialReturn", "applied_increment"]
 
 _REAL = native.array(np.float64)
 _SIGNATURES = {"radial_stress": (ctypes.c_int64, *[_REAL] * 5)}
 _kernels = native.kernels(Path(__file__).with_suffix(".c"), _SIGNATURES)
-
-
-_ONE = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])
-_I_DEV = np.eye(6) - np.outer(_ONE, _ONE) / 3.0
 
 
 def applied_increment(de: np.ndarray, de_nonlocal: np.ndarray | None) -> np.ndarray:
@@ -81,7 +77,7 @@ class RadialReturn(LinearElastic):
         norm = np.sqrt(2.0 / 3.0) * trial.q  # |s_trial|
         n = to_mandel(particle_first(trial.s)) / np.where(norm > 0.0, norm, 1.0)[:, None]
         b = np.divide(q, trial.q, out=np.ones_like(q), where=trial.q > 0.0)
-        D = K * np.outer(_ONE, _ONE) + (2.0 * G * b)[:, None, None] * _I_DEV
+        D = K * np.outer(MANDEL_IDENTITY, MANDEL_IDENTITY) + (2.0 * G * b)[:, None, None] * MANDEL_DEVIATORIC
         D += (2.0 * G * (dq_dqtrial - b))[:, None, None] * n[:, :, None] * n[:, None, :]
-        D -= (np.sqrt(2.0 / 3.0) * K * dq_dp)[:, None, None] * n[:, :, None] * _ONE[None, None, :]
+        D -= (np.sqrt(2.0 / 3.0) * K * dq_dp)[:, None, None] * n[:, :, None] * MANDEL_IDENTITY[None, None, :]
         return D

@@ -9,6 +9,8 @@ chained calls copy nothing.
 import numpy as np
 
 __all__ = [
+    "MANDEL_DEVIATORIC",
+    "MANDEL_IDENTITY",
     "component_first",
     "deviator",
     "equivalent_stress",
@@ -21,6 +23,9 @@ __all__ = [
 # Mandel order: (xx, yy, zz, sqrt2 yz, sqrt2 xz, sqrt2 xy).
 _MANDEL = ((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1))
 _SQRT2 = np.sqrt(2.0)
+#: The identity as a Mandel vector and the deviatoric projector as a Mandel matrix.
+MANDEL_IDENTITY = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])
+MANDEL_DEVIATORIC = np.eye(6) - np.outer(MANDEL_IDENTITY, MANDEL_IDENTITY) / 3.0
 
 
 def component_first(a: np.ndarray) -> np.ndarray:
