@@ -93,7 +93,16 @@ def test_material_parameters_are_the_classes_ranged_fields():
             assert params[f.name].required == (f.default is dataclasses.MISSING)
             assert params[f.name].required or params[f.name].default == f.default
     cls, params = scenario.MODELS["drucker_prager"]
-    assert cls is DruckerPragerViscoplastic and list(params) == ["E", "nu", "rho", "phi", "gamma", "N", "c"]
+    assert cls is DruckerPragerViscoplastic and list(params) == [
+        "E",
+        "nu",
+        "rho",
+        "phi",
+        "gamma",
+        "N",
+        "c",
+        "rho_c",
+    ]
     assert list(scenario.MODELS["elastic"][1]) == ["E", "nu", "rho"]
     gamma = {f.name: f for f in dataclasses.fields(cls)}["gamma"].metadata["range"]
     with pytest.raises(scenario.ScenarioError) as info:

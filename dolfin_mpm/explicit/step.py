@@ -16,8 +16,10 @@ test. The first iterate is ``R`` of the start-of-step stresses (the paper's, ord
 change of ``R`` the stress update made in the last step (order 1) or extrapolated over the last
 two (order 2): the fixed point is the same, the loop starts closer to it.
 
-Each stage is a function of what it reads, returning what it writes; only :func:`advance`
-changes the :class:`~dolfin_mpm.explicit.state.State`, after the loop. The grid's Functions serve
+Each stage is a function of what it reads, returning what it writes; :func:`advance` alone
+changes the :class:`~dolfin_mpm.explicit.state.State`: its particles (sinks, migration, cells)
+and neighbour lists before the loop, stresses, volumes, material state, velocities and
+positions after it. The grid's Functions serve
 as assembly buffers and hold the step's nodal fields for output at its end.
 """
 
@@ -35,6 +37,7 @@ from dolfin_mpm.explicit.anderson import Anderson
 from dolfin_mpm.explicit.options import Options
 from dolfin_mpm.explicit.state import State
 from dolfin_mpm.explicit.timer import Timer
+from dolfin_mpm.materials.separation import separate
 from dolfin_mpm.parallel.migration import migrate
 
 __all__ = ["STAGES", "Model", "Nodal", "SimulationError", "advance", "p2g"]
@@ -182,6 +185,11 @@ class Constitutive:
                 idx = np.flatnonzero(P.material == k)
                 state = {name: P.state[name][idx] for name in material.state_fields()}
                 self.groups.append((material, idx, state))
+        #: ``m / rho_c`` of each particle [m^3] (inf where never apart); None: no material separates.
+        self.critical_volume = None
+        if any(m.rho_c is not None for m in materials):
+            rho_c = np.array([np.inf if m.rho_c is None else m.rho_c for m in materials])
+            self.critical_volume = P.mass / rho_c[P.material]
 
     def increments(self, P: Particles, L: np.ndarray, dt: float) -> tuple[list, np.ndarray]:
         """Each group's trial state and every particle's local increment ``de``, ``shape=(n,)``."""
@@ -206,11 +214,17 @@ class Constitutive:
             sigma[idx] = material.stress(trial, de[idx], None if de_bar is None else de_bar[idx])
         return sigma
 
+    def volumes(self, P: Particles, L: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray | None]:
+        """Volume from ``det(I + dt L)`` and, where materials separate, the free volume."""
+        J = volume_ratio(L, dt)
+        if self.critical_volume is None:
+            return P.volume * J, None
+        return separate(P.volume, P.state["free_volume"], J, self.critical_volume)
+
     def record(self, P: Particles, de: np.ndarray, de_bar: np.ndarray | None, dt: float) -> None:
         """Each material's state after the step (into ``P.state``)."""
-        de_bar = de if de_bar is None else de_bar
         for material, idx, state in self.groups:
-            material.record(state, de[idx], de_bar[idx], dt)
+            material.record(state, de[idx], None if de_bar is None else de_bar[idx], dt)
             if len(self.groups) > 1:
                 for name, a in state.items():
                     P.state[name][idx] = a
@@ -250,7 +264,7 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         R_start = R_in = nodal.f_int[:owned].copy()
         if state.R_changes and options.extrapolation:
             R_in = R_start + _predicted_change(state.R_changes, options.extrapolation)
-            R_node = grid.refresh_ghosts(grid.f_int, R_in)
+            R_node = grid.refresh_ghosts(grid.f_int, R_in).copy()  # f_int takes the next R
         scale_F = math.sqrt(comm.allreduce(float(nodal.f_ext[:owned] @ nodal.f_ext[:owned]), MPI.SUM))
         mixer = Anderson(options.anderson_depth, comm)
         converged = False
@@ -267,7 +281,9 @@ def advance(model: Model, state: State, timer: Timer) -> None:
             de_bar = average(de)
             timer.lap("averaging")
         sigma = constitutive.stresses(P, trials, de, de_bar)
-        volume = P.volume * volume_ratio(L, dt)
+        volume, free_volume = constitutive.volumes(P, L, dt)
+        if free_volume is not None:
+            sigma[free_volume > 0.0] = 0.0  # apart: stress free until the free volume closes
         timer.lap("stress")
         if average is None:
             break
@@ -278,7 +294,7 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         if not converged:
             R_next = R_in + options.relaxation * (R - R_in)
             R_in = mixer(R_in, R_next)  # depth 0: R_next itself
-            R_node = grid.refresh_ghosts(grid.f_int, R_in)
+            R_node = grid.refresh_ghosts(grid.f_int, R_in).copy()  # f_int takes the next R
         timer.lap("convergence")
         if converged:
             break
@@ -294,6 +310,8 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         grid.refresh_ghosts(grid.f_int, R)  # the R of the stresses the step ends with
     P.sigma, P.volume = sigma, volume
     constitutive.record(P, de, de_bar, dt)
+    if free_volume is not None:
+        P.state["free_volume"] = free_volume
     P.v = v
     for c in range(grid.gdim):  # by columns: numpy is slow over short rows
         P.x[:, c] += dt * v_grid[:, c]
@@ -343,6 +361,8 @@ def _check_finite(state: State) -> None:
         np.isfinite(P.sigma).all(axis=(1, 2)) & np.isfinite(P.v).all(axis=1) & np.isfinite(P.x).all(axis=1)
     )
     bad |= ~(P.volume > 0.0)
+    if not bad.any():
+        return
     i = np.flatnonzero(bad)[0]
     raise SimulationError(
         f"step {state.step}, t = {state.time:.6g} s: particle {P.id[i]} at x = {P.x[i]} "

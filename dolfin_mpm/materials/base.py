@@ -59,6 +59,9 @@ class Material(ABC):
     rho: float  # mass density [kg/m^3]
     #: Whether the material can flow plastically (its increments can be non-zero).
     plastic: ClassVar[bool] = False
+    #: Critical density [kg/m^3] below which a point is apart and stress free (``None``: never;
+    #: see :mod:`dolfin_mpm.materials.separation`).
+    rho_c: float | None = None
 
     def __post_init__(self):
         check_fields(self)
@@ -103,7 +106,11 @@ class Material(ABC):
     def record(
         self, state: dict[str, np.ndarray], de: np.ndarray, de_nonlocal: np.ndarray | None, dt: float
     ) -> None:
-        """Update ``state`` in place with the step's increments (``de_nonlocal=None``: ``de``)."""
+        """Update ``state`` in place with the step's increments (``de_nonlocal=None``: ``de``).
+
+        The accumulated strain takes ``max(de, de_nonlocal)``, what the neighbours impose, also
+        where :meth:`stress` caps it at the apex.
+        """
 
     @abstractmethod
     def tangent(self, trial: Trial, de: np.ndarray, dt: float) -> np.ndarray:
@@ -149,4 +156,5 @@ class Material(ABC):
         de = self.increment(trial, state, dt)
         new = {k: np.array(v, dtype=np.float64, copy=True) for k, v in state.items()}
         self.record(new, de, None, dt)
-        return self.stress(trial, de), self.tangent(trial, de, dt), new
+        D = self.tangent(trial, de, dt)  # first: a trial gives one stress
+        return self.stress(trial, de), D, new

@@ -66,6 +66,9 @@ class DruckerPragerViscoplastic(RadialReturn):
         N: exponent of the viscosity law [-], > 0.
         c: cohesion [Pa], >= 0: the cone ``q = m (p + c cot(phi))``; the paper's sand has
             none.
+        rho_c: critical density [kg/m^3], in (0, rho]: below it a point is apart, stress free,
+            and keeps its volume at ``m / rho_c`` (see :mod:`dolfin_mpm.materials.separation`);
+            ``None``: the volume follows the flow whatever it becomes.
 
     """
 
@@ -73,9 +76,12 @@ class DruckerPragerViscoplastic(RadialReturn):
     gamma: float = parameter(0.0, np.inf, "1/s", closed=(False, True))
     N: float = parameter(0.0, np.inf, default=1.0)
     c: float = parameter(0.0, np.inf, "Pa", closed=(True, False), default=0.0)
+    rho_c: float | None = parameter(0.0, np.inf, "kg/m^3", default=None)
 
     def __post_init__(self):
         super().__post_init__()
+        if self.rho_c is not None and not self.rho_c <= self.rho:
+            raise ValueError(f"rho_c must be in (0, rho] = (0, {self.rho:g}] kg/m^3, got {self.rho_c!r}")
         _kernels()  # compiled now, before any long work
 
     @property
@@ -90,8 +96,10 @@ class DruckerPragerViscoplastic(RadialReturn):
         return self.c / np.tan(np.radians(self.phi))
 
     def state_fields(self):
-        # Equivalent viscoplastic strain rate (local and non-local) [1/s], accumulated strain [-].
-        return {"eps_vp_rate": (), "eps_vp_rate_nonlocal": (), "eps_vp": ()}
+        # Equivalent viscoplastic strain rate (local and non-local) [1/s], accumulated strain [-];
+        # with a critical density, the free volume [m^3] of a point apart.
+        fields = {"eps_vp_rate": (), "eps_vp_rate_nonlocal": (), "eps_vp": ()}
+        return fields if self.rho_c is None else {**fields, "free_volume": ()}
 
     def at_apex(self, trial: Trial) -> np.ndarray:
         """Points whose trial pressure is beyond the apex, ``p_trial + c cot(phi) <= 0``, ``shape=(n,)``."""
