@@ -215,3 +215,17 @@ def test_run_refuses_an_unwritable_folder(tmp_path, capsys):
     )
     assert code == 2
     assert f"cannot write to the output folder {tmp_path / 'file' / 'run'}" in capsys.readouterr().err
+
+
+def test_column_collapse_runs_to_its_end_without_inflating(tmp_path):
+    """The shipped collapse, whole (0.4 s): sand pulled apart at the front keeps its volume at
+    m / rho_c and the run ends (without a critical density a point inflated 60-fold and left)."""
+    cfg = scenario.load(DEMOS / "column_collapse.toml", ["output.xdmf=false", "output.figures=false"])
+    sim = scenario.build(cfg)
+    s, mass = sim.solver, sim.solver.total_mass()
+    Runner(sim, tmp_path, progress=False).run()
+    P, rho_c = s.particles, cfg["materials"]["sand"]["rho_c"]
+    assert s.time == pytest.approx(cfg["time"]["end"], abs=s.dt) and s.total_mass() == pytest.approx(mass)
+    assert np.all(P.volume <= P.mass / rho_c * (1 + 1e-12))
+    assert np.all(np.linalg.norm(P.v, axis=1) < 3.0)  # m/s: no point flung out
+    assert 0.3 < np.percentile(P.x[:, 0], 99) < 0.5  # the deposit's front [m]
