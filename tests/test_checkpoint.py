@@ -239,3 +239,57 @@ def test_progress_bar_on_a_terminal_and_log_lines_elsewhere():
         text = stream.getvalue()
         assert "t = 5.0000e-01 s" in text and "particles 1234" in text and "discharged 2.5 kg/m" in text
         assert ("[##########----------]  50.0%" in text) == tty and text.startswith("\r") == tty
+
+
+def _copy_run(reference_folder: Path, tmp_path: Path) -> Path:
+    folder = tmp_path / "run"
+    folder.mkdir()
+    for name in ("checkpoint.h5", "run.json", "scenario.toml"):
+        (folder / name).write_bytes((reference_folder / name).read_bytes())
+    return folder
+
+
+def test_a_corrupted_checkpoint_is_refused(scenario_file, reference, tmp_path, capsys):
+    """A flipped byte in any array, or an edited attribute, is found by the checksum; values no run
+    writes are refused even when the checksum was recomputed after the edit."""
+    folder = _copy_run(scenario_file.parent / "reference", tmp_path)
+    path = folder / "checkpoint.h5"
+    pristine = path.read_bytes()
+    with h5py.File(path, "r") as f:
+        offsets = [f[name].id.get_offset() for name in ("rank0/particles/sigma", "history/kinetic")]
+    for offset in offsets:
+        damaged = bytearray(pristine)
+        damaged[offset + 3] ^= 0x10
+        path.write_bytes(bytes(damaged))
+        with pytest.raises(checkpoint.CheckpointError, match="corrupted: its checksum does not match"):
+            checkpoint.read(path, MPI.COMM_WORLD)
+        assert main(["resume", str(folder), "--quiet"]) == 2
+        assert "corrupted" in capsys.readouterr().err
+    for edit in ({"time": np.nan}, {"dt": -1.0}):
+        path.write_bytes(pristine)
+        with h5py.File(path, "r+") as f:
+            f.attrs.update(edit)
+        with pytest.raises(checkpoint.CheckpointError, match="corrupted: its checksum"):
+            checkpoint.read(path, MPI.COMM_WORLD)
+        with h5py.File(path, "r+") as f:  # and with a checksum made to match
+            attrs = dict(f.attrs)
+            ranks = checkpoint._read_tree(f)
+            ranks.pop("history")
+            f.attrs["sha256"] = checkpoint._digest(attrs, ranks)
+        with pytest.raises(checkpoint.CheckpointError, match="corrupted: time"):
+            checkpoint.read(path, MPI.COMM_WORLD)
+
+
+def test_resume_of_an_edited_scenario_is_refused_naming_the_change(
+    scenario_file, reference, tmp_path, capsys
+):
+    folder = _copy_run(scenario_file.parent / "reference", tmp_path)
+    text = (folder / "scenario.toml").read_text()
+    (folder / "scenario.toml").write_text(
+        text.replace("E = 1e6", "E = 5e6").replace("interval = 0.002", "interval = 0.004")
+    )
+    assert main(["resume", str(folder), "--quiet", "--set", "time.end=0.05"]) == 2
+    err = capsys.readouterr().err
+    assert "materials.sand.E (1000000.0 -> 5000000.0)" in err and "output" not in err.split(";")[0]
+    (folder / "scenario.toml").write_text(text.replace("interval = 0.002", "interval = 0.004"))
+    assert main(["resume", str(folder), "--quiet", "--set", "time.end=0.041"]) == 0  # output may change

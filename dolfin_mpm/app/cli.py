@@ -23,9 +23,6 @@ from dolfin_mpm.io import checkpoint
 
 __all__ = ["main"]
 
-#: What ``resume --set`` may change: the end time and the output, not the physics.
-RESUMABLE = ("time.end", "output.")
-
 
 def _fail(comm, message: str, code: int) -> int:
     print_root(comm, f"error: {message}", file=sys.stderr)
@@ -99,7 +96,7 @@ def _resume(args, comm) -> int:
         info = json.loads((folder / "run.json").read_text())
     except (OSError, ValueError) as e:
         return _fail(comm, f"{folder} is not a run folder: cannot read run.json ({e})", 2)
-    bad = [item for item in args.set if not item.split("=")[0].strip().startswith(RESUMABLE)]
+    bad = [item for item in args.set if not item.split("=")[0].strip().startswith(checkpoint.RESUMABLE)]
     if bad:
         return _fail(comm, f"--set {bad[0]}: a resumed run may change only time.end and output.*", 2)
     overrides = [*info["set"], *args.set]

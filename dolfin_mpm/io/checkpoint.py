@@ -11,6 +11,9 @@ crash at any moment leaves the last complete one. Restoring it into a freshly bu
 continues the run bit for bit (on the same number of ranks).
 """
 
+import hashlib
+import json
+import math
 import os
 from pathlib import Path
 
@@ -18,10 +21,12 @@ import h5py
 import numpy as np
 from mpi4py import MPI
 
-__all__ = ["FORMAT", "CheckpointError", "read", "restore", "write"]
+__all__ = ["FORMAT", "RESUMABLE", "CheckpointError", "read", "restore", "scenario_record", "write"]
 
 #: Layout version, stored in the file.
-FORMAT = 4
+FORMAT = 5
+#: Scenario keys a resumed run may change (the end time and the output, not the physics).
+RESUMABLE = ("time.end", "output.")
 
 
 class CheckpointError(RuntimeError):
@@ -47,6 +52,46 @@ def _read_tree(group: h5py.Group) -> dict:
     return {k: _read_tree(v) if isinstance(v, h5py.Group) else v[()] for k, v in group.items()}
 
 
+def _digest(attrs: dict, tree: dict) -> str:
+    """SHA-256 of the attributes and every array of ``tree``: names, types, shapes and bytes."""
+    h = hashlib.sha256()
+
+    def add(name: str, value) -> None:
+        a = np.ascontiguousarray(value)
+        h.update(f"{name}|{a.dtype.str}|{a.shape}|".encode())
+        h.update(a.tobytes())
+
+    def walk(prefix: str, node: dict) -> None:
+        for name in sorted(node):
+            if isinstance(node[name], dict):
+                walk(f"{prefix}{name}/", node[name])
+            else:
+                add(prefix + name, node[name])
+
+    for name in sorted(set(attrs) - {"sha256", "scenario"}):
+        add(f"@{name}", attrs[name])
+    h.update(str(attrs.get("scenario", "")).encode())
+    walk("", tree)
+    return h.hexdigest()
+
+
+def _flat(config: dict, prefix: str = "") -> dict:
+    """``{"a.b.c": value}`` of a nested scenario, without the keys a resume may change."""
+    out = {}
+    for key, value in config.items():
+        path = f"{prefix}{key}"
+        if isinstance(value, dict):
+            out.update(_flat(value, path + "."))
+        elif not path.startswith(RESUMABLE):
+            out[path] = value
+    return out
+
+
+def scenario_record(config: dict) -> str:
+    """The scenario's physics and numerics as canonical JSON (what a resume must not change)."""
+    return json.dumps(_flat(config), sort_keys=True, default=str)
+
+
 def write(path, sim, history: dict[str, np.ndarray]) -> None:
     """Write the checkpoint of ``sim`` to ``path`` atomically (collective).
 
@@ -68,15 +113,17 @@ def write(path, sim, history: dict[str, np.ndarray]) -> None:
         tmp = path.with_name(path.name + ".tmp")
         try:
             with h5py.File(tmp, "w") as f:
-                f.attrs.update(
-                    format=FORMAT,
-                    ranks=comm.size,
-                    applied=np.array(sim.applied, dtype=np.int64),
+                attrs = {
+                    "format": FORMAT,
+                    "ranks": comm.size,
+                    "applied": np.array(sim.applied, dtype=np.int64),
+                    "scenario": scenario_record(sim.config),
                     **sim.solver.state.scalars(),
-                )
-                for rank, part in enumerate(parts):
-                    _write_tree(f.create_group(f"rank{rank}"), part)
-                _write_tree(f.create_group("history"), history)
+                }
+                ranks = {f"rank{rank}": part for rank, part in enumerate(parts)}
+                f.attrs.update(attrs, sha256=_digest(attrs, ranks))  # the state, and apart ...
+                _write_tree(f, {**ranks, "history": history})
+                f["history"].attrs["sha256"] = _digest({}, history)  # ... what the run recorded
             fd = os.open(tmp, os.O_RDONLY)
             try:
                 os.fsync(fd)
@@ -100,7 +147,8 @@ def read(path, comm) -> dict:
         (see :meth:`State.tree <dolfin_mpm.explicit.state.State.tree>`).
 
     Raises:
-        CheckpointError: missing or unreadable file, or written by another number of ranks.
+        CheckpointError: missing, unreadable or corrupted file (its checksum or its values), or
+            written by another number of ranks.
 
     """
     parts, error = None, None
@@ -113,17 +161,42 @@ def read(path, comm) -> dict:
                         f"{path}: written by {attrs.get('ranks')} ranks (format {attrs.get('format')}); "
                         f"resume it on {attrs.get('ranks')} ranks with this version (format {FORMAT})"
                     )
-                history = _read_tree(f["history"])
-                parts = [
-                    {"attrs": attrs, "history": history, **_read_tree(f[f"rank{r}"])}
-                    for r in range(comm.size)
-                ]
-        except (OSError, KeyError, CheckpointError) as e:
-            error = str(e) if isinstance(e, CheckpointError) else f"cannot read the checkpoint {path} ({e})"
+                tree = _read_tree(f)
+                history_sha = f["history"].attrs.get("sha256")
+            history = tree.pop("history")
+            if _digest(attrs, tree) != attrs.get("sha256") or _digest({}, history) != history_sha:
+                raise CheckpointError(f"{path} is corrupted: its checksum does not match its contents")
+            _check_values(attrs, tree, comm.size)
+            parts = [{"attrs": attrs, "history": history, **tree[f"rank{r}"]} for r in range(comm.size)]
+        except CheckpointError as e:
+            error = str(e)
+        except Exception as e:
+            error = f"cannot read the checkpoint {path} ({type(e).__name__}: {e})"
     error = comm.bcast(error, root=0)
     if error:
         raise CheckpointError(error)
     return comm.scatter(parts, root=0)
+
+
+def _check_values(attrs: dict, tree: dict, ranks: int) -> None:
+    """Refuse values no run writes: a checksum recomputed after an edit does not make them good."""
+
+    def bad(what: str):
+        return CheckpointError(f"the checkpoint is corrupted: {what}")
+
+    if not (math.isfinite(attrs["time"]) and math.isfinite(attrs["dt"]) and attrs["dt"] > 0.0):
+        raise bad(f"time {attrs['time']!r}, time step {attrs['dt']!r}")
+    if not (attrs["step"] >= 0 and np.all(np.asarray(attrs["fixed_point"]) >= 0)):
+        raise bad(f"step {attrs['step']!r}, loop counters {attrs['fixed_point']!r}")
+    for r in range(ranks):
+        particles = tree[f"rank{r}"]["particles"]
+        n = len(particles["mass"])
+        arrays = [a for k, a in particles.items() if k != "state"] + list(particles.get("state", {}).values())
+        if any(np.shape(a)[:1] != (n,) for a in arrays):
+            raise bad(f"rank {r}'s particle arrays differ in length")
+        real = [particles[k] for k in ("x", "v", "sigma", "mass", "volume")]
+        if not all(np.all(np.isfinite(a)) for a in real) or np.any(particles["volume"] <= 0.0):
+            raise bad(f"rank {r} holds a particle with a non-finite value or a non-positive volume")
 
 
 def restore(sim, data: dict) -> None:
@@ -134,13 +207,27 @@ def restore(sim, data: dict) -> None:
 
     """
     s = sim.solver
-    if not s.state.fits(data):
+    if not s.comm.allreduce(s.state.fits(data), MPI.LAND):  # on every rank
         raise CheckpointError("the checkpoint does not fit the scenario (particle fields or sinks differ)")
     same_nodes = np.array_equal(data["nodes"], s.grid.node_x[: s.grid.num_owned_nodes])
     if not s.comm.allreduce(same_nodes, MPI.LAND):  # on every rank
         raise CheckpointError(
             "the checkpoint does not fit the scenario (the grid's nodes, or their partition, differ)"
         )
+    was, now = json.loads(data["attrs"]["scenario"]), json.loads(scenario_record(sim.config))
+    changed = sorted(k for k in was.keys() | now.keys() if was.get(k) != now.get(k))
+    if changed:
+        shown = ", ".join(f"{k} ({was.get(k)!r} -> {now.get(k)!r})" for k in changed[:5])
+        raise CheckpointError(
+            f"the scenario differs from the one the checkpoint was written by: {shown}"
+            f"{' and more' if len(changed) > 5 else ''}; a resumed run may change only "
+            "time.end and output.*"
+        )
+    applied = np.asarray(data["attrs"]["applied"])
+    if len(set(applied.tolist())) < applied.size or not np.all(
+        (0 <= applied) & (applied < len(sim.config["events"]))
+    ):
+        raise CheckpointError(f"the checkpoint is corrupted: applied events {applied.tolist()}")
     sim.applied.clear()
     for k in data["attrs"]["applied"]:
         sim.apply_event(int(k))  # walls and damping as they were
