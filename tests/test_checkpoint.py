@@ -293,3 +293,28 @@ def test_resume_of_an_edited_scenario_is_refused_naming_the_change(
     assert "materials.sand.E (1000000.0 -> 5000000.0)" in err and "output" not in err.split(";")[0]
     (folder / "scenario.toml").write_text(text.replace("interval = 0.002", "interval = 0.004"))
     assert main(["resume", str(folder), "--quiet", "--set", "time.end=0.041"]) == 0  # output may change
+
+
+def test_a_live_run_folder_is_not_clobbered_and_a_stale_lock_is_taken_over(scenario_file, tmp_path, capsys):
+    import json
+    import os
+    import socket
+
+    folder = tmp_path / "run"
+    folder.mkdir()
+    (folder / "particles.h5").write_bytes(b"a live run's output")
+    (folder / "scenario.toml").write_text(scenario_file.read_text())
+    (folder / "run.json").write_text(json.dumps({"set": [], "base": str(scenario_file.parent), "ranks": 1}))
+    lock = folder / ".lock"
+    lock.write_text(json.dumps({"host": socket.gethostname(), "pid": os.getpid()}))  # alive: us
+    for command in (["run", str(scenario_file), "--output", str(folder), "--force"], ["resume", str(folder)]):
+        assert main([*command, "--quiet"]) == 2
+        assert "is in use by a run" in capsys.readouterr().err
+    assert (folder / "particles.h5").read_bytes() == b"a live run's output" and lock.exists()
+    gone = subprocess.run(
+        [sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True
+    )
+    lock.write_text(json.dumps({"host": socket.gethostname(), "pid": int(gone.stdout)}))  # stale
+    end = "time.end=0.006"
+    assert main(["run", str(scenario_file), "--output", str(folder), "--force", "--quiet", "--set", end]) == 0
+    assert not lock.exists() and (folder / "checkpoint.h5").exists()

@@ -17,7 +17,15 @@ from pathlib import Path
 from mpi4py import MPI
 
 from dolfin_mpm.app import scenario
-from dolfin_mpm.app.runner import CHECKPOINT, Interrupted, RunError, Runner, print_root, write_run_info
+from dolfin_mpm.app.runner import (
+    CHECKPOINT,
+    FolderLock,
+    Interrupted,
+    RunError,
+    Runner,
+    print_root,
+    write_run_info,
+)
 from dolfin_mpm.explicit.solver import SimulationError
 from dolfin_mpm.io import checkpoint
 
@@ -73,21 +81,45 @@ def _run(args, comm) -> int:
     if comm.rank == 0:
         try:
             folder.mkdir(parents=True, exist_ok=True)
-            (folder / CHECKPOINT).unlink(missing_ok=True)
-            info = {"scenario": str(path.resolve()), "base": str(path.parent.resolve()),
-                    "set": list(args.set), "ranks": comm.size}  # fmt: skip
-            write_run_info(folder, path.read_text(), info)
         except OSError as e:
             error = f"cannot write to the output folder {folder} ({e.strerror or e})"
     error = comm.bcast(error, root=0)
     if error:
         return _fail(comm, error, 2)
+
+    def start() -> int:  # with the folder locked: --force cannot clobber a live run
+        error = None
+        if comm.rank == 0:
+            try:
+                (folder / CHECKPOINT).unlink(missing_ok=True)
+                info = {"scenario": str(path.resolve()), "base": str(path.parent.resolve()),
+                        "set": list(args.set), "ranks": comm.size}  # fmt: skip
+                write_run_info(folder, path.read_text(), info)
+            except OSError as e:
+                error = f"cannot write to the output folder {folder} ({e.strerror or e})"
+        error = comm.bcast(error, root=0)
+        if error:
+            return _fail(comm, error, 2)
+        try:
+            sim = scenario.build(cfg, comm)
+        except scenario.ScenarioError as e:
+            return _scenario_errors(comm, path, e)
+        print_root(comm, f"{_summary(sim)}\nwriting to {folder}")
+        return _drive(Runner(sim, folder, progress=not args.quiet), comm, folder)
+
+    return _locked(folder, comm, start)
+
+
+def _locked(folder: Path, comm, work) -> int:
+    """``work()`` with the run folder locked; exit 2 when another run holds it."""
+    lock = FolderLock(folder, comm)
+    error = lock.acquire()
+    if error:
+        return _fail(comm, error, 2)
     try:
-        sim = scenario.build(cfg, comm)
-    except scenario.ScenarioError as e:
-        return _scenario_errors(comm, path, e)
-    print_root(comm, f"{_summary(sim)}\nwriting to {folder}")
-    return _drive(Runner(sim, folder, progress=not args.quiet), comm, folder)
+        return work()
+    finally:
+        lock.release()
 
 
 def _resume(args, comm) -> int:
@@ -99,6 +131,10 @@ def _resume(args, comm) -> int:
     bad = [item for item in args.set if not item.split("=")[0].strip().startswith(checkpoint.RESUMABLE)]
     if bad:
         return _fail(comm, f"--set {bad[0]}: a resumed run may change only time.end and output.*", 2)
+    return _locked(folder, comm, lambda: _continue(args, comm, folder, info))
+
+
+def _continue(args, comm, folder: Path, info: dict) -> int:
     overrides = [*info["set"], *args.set]
     try:
         cfg = scenario.load(folder / "scenario.toml", overrides, base=Path(info["base"]))

@@ -11,6 +11,7 @@ import csv
 import json
 import os
 import signal
+import socket
 import sys
 from contextlib import contextmanager
 from pathlib import Path
@@ -24,7 +25,7 @@ from dolfin_mpm.io import checkpoint
 from dolfin_mpm.io.xdmf import Output
 from dolfin_mpm.post.figures import field_values, plot_curves, plot_particles
 
-__all__ = ["HISTORY", "Interrupted", "RunError", "Runner"]
+__all__ = ["HISTORY", "FolderLock", "Interrupted", "RunError", "Runner"]
 
 #: Columns of the history recorded at each output time.
 HISTORY = ("t", "step", "kinetic", "strain", "potential", "total", "discharged", "particles")
@@ -234,6 +235,69 @@ class Runner:
         if signum:
             self._checkpoint()
             raise Interrupted(signum)
+
+
+class FolderLock:
+    """A run folder's lock: one run at a time writes into a folder (``.lock``, rank 0).
+
+    The lock file is created atomically and holds the host and process id of its run. A lock
+    whose process is gone on this host is stale and taken over; a live one, or one of another
+    host, is refused. Collective: every rank learns the outcome.
+    """
+
+    NAME = ".lock"
+
+    def __init__(self, folder: Path, comm):
+        self.path, self.comm, self.held = Path(folder) / self.NAME, comm, False
+
+    def acquire(self) -> str | None:
+        """Take the lock; ``None`` when taken, else why not (the same on every rank)."""
+        error = None
+        if self.comm.rank == 0:
+            error = self._take()
+            self.held = error is None
+        return self.comm.bcast(error, root=0)
+
+    def _take(self) -> str | None:
+        me = {"host": socket.gethostname(), "pid": os.getpid()}
+        for _ in range(2):
+            try:
+                fd = os.open(self.path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+            except FileExistsError:
+                try:
+                    owner = json.loads(self.path.read_text())
+                except (OSError, ValueError):
+                    owner = {}
+                if owner.get("host") == me["host"] and not _alive(owner.get("pid")):
+                    self.path.unlink(missing_ok=True)  # stale: its run is gone
+                    continue
+                who = f"process {owner.get('pid', '?')} on {owner.get('host', '?')}"
+                return (
+                    f"{self.path.parent} is in use by a run ({who}); wait for it to end, or remove "
+                    f"{self.path} if that run is gone"
+                )
+            except OSError as e:
+                return f"cannot lock the run folder {self.path.parent} ({e.strerror or e})"
+            with os.fdopen(fd, "w") as f:
+                json.dump(me, f)
+            return None
+        return f"cannot lock the run folder {self.path.parent}"
+
+    def release(self) -> None:
+        if self.held:
+            self.path.unlink(missing_ok=True)
+            self.held = False
+
+
+def _alive(pid) -> bool:
+    """Whether process ``pid`` runs on this host."""
+    try:
+        os.kill(int(pid), 0)
+    except (TypeError, ValueError, ProcessLookupError):
+        return False
+    except PermissionError:
+        return True
+    return True
 
 
 def write_run_info(folder: Path, scenario_text: str, info: dict) -> None:
