@@ -59,8 +59,14 @@ def kernels(source: Path, signatures: dict[str, tuple]) -> Callable[[], ctypes.C
 
 
 def _compile(compiler: list[str], source: Path, library: Path) -> None:
-    library.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(suffix=".so", dir=library.parent)
+    try:
+        library.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(suffix=".so", dir=library.parent)
+    except OSError as e:
+        raise RuntimeError(
+            f"cannot write the compiled kernels to {library.parent} ({e.strerror or e}); "
+            "set DOLFIN_MPM_CACHE_DIR to a writable folder"
+        ) from None
     os.close(fd)
     try:
         done = subprocess.run(

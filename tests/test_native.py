@@ -34,3 +34,15 @@ def test_a_failing_compiler_is_named(tmp_path, monkeypatch, compiler):
     with pytest.raises(RuntimeError, match=f"nonlocal_average.c with {compiler} failed.*set CC"):
         native.load(source, {})
     assert list(tmp_path.iterdir()) == []  # no half-written library left
+
+
+def test_an_unwritable_cache_is_named(tmp_path, monkeypatch):
+    blocked = tmp_path / "file"
+    blocked.write_text("not a folder")
+    monkeypatch.setenv("DOLFIN_MPM_CACHE_DIR", str(blocked / "cache"))
+    source = tmp_path / "empty.c"
+    source.write_text("void nothing(void) {}\n")
+    with pytest.raises(
+        RuntimeError, match=r"cannot write the compiled kernels to .*cache.*DOLFIN_MPM_CACHE_DIR"
+    ):
+        native.load(source, {"nothing": ()})

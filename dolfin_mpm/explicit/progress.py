@@ -1,5 +1,6 @@
 """Progress of a run on rank 0: a bar on a terminal, plain log lines elsewhere (CI, files)."""
 
+import shutil
 import sys
 import time
 
@@ -34,10 +35,12 @@ class Progress:
         self.tty = enabled and hasattr(self.stream, "isatty") and self.stream.isatty()
         self.every = 0.2 if self.tty else log_every
         self.t0 = self.last = time.perf_counter()
-        self.steps = 0
+        self.steps = -1  # the rate counts from the end of the first step (start-up left out)
 
     def due(self) -> bool:
         """Count a step; true when the display should be refreshed (never on silent ranks)."""
+        if self.steps < 0:
+            self.t0 = time.perf_counter()
         self.steps += 1
         return self.enabled and time.perf_counter() - self.last >= self.every
 
@@ -47,16 +50,20 @@ class Progress:
             return
         now = time.perf_counter()
         self.last = now
-        rate = self.steps / max(now - self.t0, 1e-9)
+        rate = max(self.steps, 0) / max(now - self.t0, 1e-9)
         eta = max(self.t_end - t, 0.0) / self.dt / rate if rate > 0 else float("inf")
         span = max(self.t_end - self.t_start, 1e-300)
         fraction = min(max((t - self.t_start) / span, 0.0), 1.0)
         text = f"t = {t:.4e} s  {rate:7.1f} steps/s  ETA {_clock(eta)}  particles {particles}"
         if discharged is not None:
             text += f"  discharged {discharged:.4g} {self.mass_unit}"
-        if self.tty:
+        if self.tty:  # one line, cleared to its end; on a narrow terminal without the bar, cut
             bar = "#" * round(20 * fraction) + "-" * (20 - round(20 * fraction))
-            self.stream.write(f"\r[{bar}] {100 * fraction:5.1f}%  {text}" + ("\n" if final else ""))
+            line = f"[{bar}] {100 * fraction:5.1f}%  {text}"
+            width = shutil.get_terminal_size(fallback=(0, 0)).columns
+            if 0 < width <= len(line):
+                line = f"{100 * fraction:5.1f}%  {text}"[: width - 1]
+            self.stream.write(f"\r{line}\x1b[K" + ("\n" if final else ""))
         else:
             self.stream.write(f"{100 * fraction:5.1f}%  {text}\n")
         self.stream.flush()
