@@ -4,7 +4,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dolfin_mpm.params import parameter, parameters
+from dolfin_mpm.params import check_fields, parameter
 
 __all__ = ["INTEGERS", "SCHEMES", "Options"]
 
@@ -53,9 +53,7 @@ class Options:
     def __post_init__(self):
         if self.scheme not in SCHEMES:
             raise ValueError(f"scheme must be 'USL' or 'MUSL', got {self.scheme!r}")
-        for name, p in parameters(self).items():
-            value = getattr(self, name)
-            if name in INTEGERS and not isinstance(value, (int, np.integer)):
-                raise ValueError(f"{name} must be an integer, got {value!r}")
-            if value is not None:
-                p.range.check(name, value)
+        for name in INTEGERS:
+            if not isinstance(getattr(self, name), (int, np.integer)):
+                raise ValueError(f"{name} must be an integer, got {getattr(self, name)!r}")
+        check_fields(self)
