@@ -11,6 +11,7 @@ types and out-of-range values together, each with its TOML path
 """
 
 import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -36,9 +37,23 @@ from dolfin_mpm.materials import DruckerPragerViscoplastic, LinearElastic
 from dolfin_mpm.parallel import partition
 from dolfin_mpm.params import Range, parameters
 
-__all__ = ["MODELS", "ScenarioError", "Simulation", "apply_overrides", "build", "load", "parse", "validate"]
+__all__ = [
+    "BYTES_PER_CELL", "BYTES_PER_PAIR", "BYTES_PER_PARTICLE", "MAX_STEPS", "MODELS", "ScenarioError",
+    "Simulation", "apply_overrides", "available_memory", "build", "load", "parse", "validate",
+]  # fmt: skip
 
 INF = math.inf
+#: What a run needs per mesh cell and per material point [bytes], on the safe side (the silo
+#: measured about 0.5 kB each; non-local averaging's neighbour lists come on top). Sizes are
+#: checked against the available memory before anything is allocated.
+BYTES_PER_CELL, BYTES_PER_PARTICLE = 1000, 2000
+#: ... and per pair of particles that non-local averaging weighs (index, weight, spare room).
+BYTES_PER_PAIR = 32
+#: Most time steps of a run, and the largest ``|t| / dt``: the time keeps about 12 bits below
+#: each step (a float has 52), so that ``t + dt`` still advances the time accurately.
+MAX_STEPS = 1e12
+#: Most cells along an axis of a generated mesh (DOLFINx counts them in 32 bits).
+_MAX_CELLS = 2**31 - 1
 
 
 #: Material models by name: class and its parameters (ranges, units, defaults), as the class
@@ -67,6 +82,11 @@ class ScenarioError(ValueError):
     def __init__(self, errors: list[str]):
         self.errors = list(errors)
         super().__init__("\n".join(self.errors))
+
+
+def _finite(a) -> bool:
+    """Whether ``a`` is not a number (left to the type check) or a finite one."""
+    return not isinstance(a, (int, float)) or isinstance(a, bool) or math.isfinite(a)
 
 
 def _show(value) -> str:
@@ -118,12 +138,22 @@ class _Checker:
         return good
 
     def value(
-        self, t: dict, path: str, key: str, kind: str, default=None, required=False, check=None, size=0
+        self,
+        t: dict,
+        path: str,
+        key: str,
+        kind: str,
+        default=None,
+        required=False,
+        check=None,
+        size=0,
+        finite=True,
     ):
         """``t[key]`` of ``kind`` (number, integer, string, bool, numbers, strings, vector).
 
         ``check`` is a :class:`~dolfin_mpm.params.Range` or a tuple of choices; ``size`` the length of a
-        ``numbers`` array (0: any). Returns ``default`` when missing or bad.
+        ``numbers`` array (0: any). Numbers without a range must be finite unless ``finite`` is
+        false. Returns ``default`` when missing or bad.
         """
         where = f"{path}.{key}"
         if key not in t:
@@ -150,8 +180,11 @@ class _Checker:
         if not expected[1]:
             self.fail(where, f"must be {expected[0]}, got {_show(v)}")
             return default
+        values = v if isinstance(v, list) else [v]
+        if check is None and finite and not all(map(_finite, values)):
+            self.fail(where, f"must be finite, got {_show(v)}")
+            return default
         if isinstance(check, Range):
-            values = v if isinstance(v, list) else [v]
             if not all(check.contains(a) for a in values):
                 self.fail(where, f"{check.describe()}, got {_show(v)}")
                 return default
@@ -193,8 +226,15 @@ class _Checker:
         for k, b in enumerate(boxes):
             bpath = where if isinstance(v, dict) else f"{where}[{k}]"
             self.keys(b, bpath, ("min", "max"))
-            lo = self.value(b, bpath, "min", "numbers", required=True, size=gdim)
-            hi = self.value(b, bpath, "max", "numbers", required=True, size=gdim)
+            lo = self.value(b, bpath, "min", "numbers", required=True, size=gdim, finite=False)
+            hi = self.value(b, bpath, "max", "numbers", required=True, size=gdim, finite=False)
+            for key, corner, sign in (("min", lo, -1.0), ("max", hi, 1.0)):
+                if corner is not None and any(math.isnan(a) or a == -sign * INF for a in corner):
+                    self.fail(
+                        f"{bpath}.{key}",
+                        f"must be numbers ({_show(sign * INF)} for no bound), got {_show(corner)}",
+                    )
+                    lo = hi = None
             if lo is not None and hi is not None:
                 if any(a > c for a, c in zip(lo, hi)):
                     self.fail(
@@ -224,6 +264,8 @@ def parse(text: str, source: str = "scenario") -> dict:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise ScenarioError([f"{source}: {e}"]) from None
+    except RecursionError:
+        raise ScenarioError([f"{source}: arrays or tables nested too deeply"]) from None
 
 
 def apply_overrides(data: dict, overrides) -> None:
@@ -239,6 +281,9 @@ def apply_overrides(data: dict, overrides) -> None:
             value = tomllib.loads(f"v = {text.strip()}")["v"]
         except tomllib.TOMLDecodeError:
             value = text.strip()
+        except RecursionError:
+            errors.append(f"--set {item}: arrays or tables nested too deeply")
+            continue
         t = data
         for k, name in enumerate(keys[:-1]):
             t = t.setdefault(name, {})
@@ -268,12 +313,74 @@ def load(path, overrides=(), base: Path | None = None) -> dict:
     """
     path = Path(path)
     try:
-        text = path.read_text()
+        text = path.read_bytes().decode("utf-8")
     except OSError as e:
-        raise ScenarioError([f"{path}: cannot read ({e.strerror})"]) from None
+        raise ScenarioError([f"{path}: cannot read ({e.strerror or e})"]) from None
+    except UnicodeDecodeError as e:
+        raise ScenarioError(
+            [f"{path}: not UTF-8 text (byte 0x{e.object[e.start]:02x} at offset {e.start})"]
+        ) from None
     data = parse(text, str(path))
     apply_overrides(data, overrides)
     return validate(data, path.parent if base is None else base)
+
+
+# -- sizes ---------------------------------------------------------------------------------------
+def available_memory() -> float | None:
+    """Memory this machine can give without swapping [bytes]; ``None`` when unknown.
+
+    ``MemAvailable`` of ``/proc/meminfo``, else the free physical pages; unknown: no size checks.
+    """
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            for line in f:
+                key, _, value = line.partition(":")
+                if key == "MemAvailable":
+                    return float(value.split()[0]) * 1024.0  # given in kB
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return float(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    except (AttributeError, OSError, ValueError):
+        return None
+
+
+def _available_total(comm) -> float | None:
+    """The available memory of the machines the ranks of ``comm`` run on, together (collective)."""
+    machines = dict(comm.allgather((MPI.Get_processor_name(), available_memory())))
+    return None if None in machines.values() else sum(machines.values())
+
+
+def _needs(need: float, memory: float) -> str:
+    return f"would need about {need / 1e9:.3g} GB, {memory / 1e9:.3g} GB available"
+
+
+def _num_cells(mesh: dict) -> int:
+    """The cell count of a generated mesh (triangles or tetrahedra)."""
+    per_box = 6 if mesh["shape"] == "box" else 4 if mesh.get("diagonal") == "crossed" else 2
+    return per_box * math.prod(mesh["cells"])
+
+
+def _size_errors(cells: int, bodies: dict, memory: float | None, path: str) -> list[str]:
+    """Problems of ``cells`` mesh cells with the particles of ``bodies`` in ``memory`` bytes.
+
+    A body counts ``ppc`` particles in every cell: seeding lays them out before keeping those in
+    its region.
+    """
+    if memory is None:
+        return []
+    ppc = {name: b["ppc"] for name, b in bodies.items()}
+    need = cells * (BYTES_PER_CELL + sum(ppc.values()) * BYTES_PER_PARTICLE)
+    if need <= memory:
+        return []
+    listed = ", ".join(f"{n} per cell of bodies.{name}" for name, n in ppc.items())
+    problem = (
+        f"{cells:,} cells and up to {cells * sum(ppc.values()):,} particles ({listed}) {_needs(need, memory)}"
+    )
+    # The mesh's fault if it does not fit with one particle per cell and body, else the largest ppc's.
+    if cells * (BYTES_PER_CELL + len(ppc) * BYTES_PER_PARTICLE) > memory:
+        return [f"{path}: {problem}"]
+    return [f"bodies.{max(ppc, key=ppc.get)}.ppc: {problem}"]
 
 
 # -- validation ----------------------------------------------------------------------------------
@@ -298,6 +405,9 @@ def validate(data: dict, base: Path = Path(".")) -> dict:
         ),
     )
     cfg = {"title": c.value(data, "", "title", "string", default="")}
+    # On several ranks, as if every rank had a machine like this one (build checks exactly).
+    memory = available_memory()
+    memory = None if memory is None else memory * MPI.COMM_WORLD.size
     cfg["mesh"], gdim = _mesh(c, c.table(data, "mesh", ""), Path(base))
     cfg["materials"] = {
         name: _material(c, t, f"materials.{name}") for name, t in c.named_tables(data, "materials").items()
@@ -309,9 +419,11 @@ def validate(data: dict, base: Path = Path(".")) -> dict:
         cfg["sinks"][name] = {"region": c.region(t, f"sinks.{name}", "region", gdim)}
     cfg["solver"] = _solver(c, c.table(data, "solver", "", required=False) or {}, gdim, cfg["sinks"])
     cfg["bodies"] = {
-        name: _body(c, t, f"bodies.{name}", gdim, cfg["materials"], cfg["solver"]["gravity"])
+        name: _body(c, t, f"bodies.{name}", gdim, cfg["materials"], cfg["solver"]["gravity"], memory)
         for name, t in c.named_tables(data, "bodies").items()
     }
+    if cfg["mesh"].get("cells"):  # a generated mesh with valid cell counts
+        c.errors += _size_errors(_num_cells(cfg["mesh"]), cfg["bodies"], memory, "mesh.cells")
     cfg["walls"] = {
         name: _wall(c, t, f"walls.{name}", gdim) for name, t in c.named_tables(data, "walls", False).items()
     }
@@ -353,12 +465,28 @@ def _mesh(c: _Checker, t: dict | None, base: Path) -> tuple[dict, int]:
         c.fail(
             "mesh.upper", f"must exceed mesh.lower = {_show(lower)} in every component, got {_show(upper)}"
         )
+        lower = upper = None
+    if lower and upper and not all(math.isfinite(b - a) for a, b in zip(lower, upper)):
+        c.fail("mesh.upper", f"upper - lower overflows, got {_show(upper)} and {_show(lower)}")
+        lower = upper = None
     cells = c.value(
         t, "mesh", "cells", "numbers", required=True, size=gdim, check=Range(1, INF, closed=(True, False))
     )
     if cells is not None and not all(float(n).is_integer() for n in cells):
         c.fail("mesh.cells", f"must be whole numbers, got {_show(cells)}")
         cells = None
+    if cells is not None and max(cells) > _MAX_CELLS:
+        c.fail("mesh.cells", f"must be at most {_MAX_CELLS} along an axis, got {_show(cells)}")
+        cells = None
+    if cells and lower and upper:
+        h = [(b - a) / n for a, b, n in zip(lower, upper, cells)]
+        coordinate = max(map(abs, lower + upper))
+        if not all(hk > 1e-10 * coordinate for hk in h) or not 0.0 < math.prod(h) < INF:
+            c.fail(
+                "mesh.cells",
+                f"cells of {' x '.join(f'{hk:g}' for hk in h)} m at coordinates up to {coordinate:g} m: "
+                "below the precision of the coordinates, or a cell volume that is not a finite number",
+            )
     m = {
         "shape": shape,
         "lower": lower,
@@ -382,10 +510,23 @@ def _material(c: _Checker, t: dict, path: str) -> dict:
         m[name] = c.value(t, path, name, "number", default=p.default, required=p.required, check=p.range)
     if not any(m[name] is None and p.required for name, p in params.items()):
         try:
-            m["state"] = list(cls(**{k: m[k] for k in params}).state_fields())
+            material = cls(**{k: m[k] for k in params})
         except ValueError as e:  # a check across parameters ("psi must be in [0, phi]")
             name, _, problem = str(e).partition(" ")
             c.fail(f"{path}.{name}", problem)
+            return m
+        m["state"] = list(material.state_fields())
+        try:
+            with np.errstate(all="ignore"):
+                speed = material.p_wave_speed()
+        except ArithmeticError:
+            speed = INF
+        if not 0.0 < speed < INF:  # the explicit time step is h / speed
+            c.fail(
+                f"{path}.E",
+                f"with rho = {_show(m['rho'])} the p-wave speed is {speed:g} m/s, not a positive "
+                "finite number (the moduli or E / rho overflow or underflow)",
+            )
     return m
 
 
@@ -411,13 +552,16 @@ def _nonlocal(c: _Checker, t: dict | None, materials: dict) -> dict:
 def _solver(c: _Checker, t: dict, gdim: int, sinks: dict) -> dict:
     c.keys(t, "solver", ("gravity", "on_exit", *_SOLVER))
     s = {"gravity": c.value(t, "solver", "gravity", "numbers", [0.0] * gdim, size=gdim)}
+    if not math.isfinite(math.hypot(*s["gravity"])):
+        c.fail("solver.gravity", f"its magnitude overflows, got {_show(s['gravity'])}")
+        s["gravity"] = [0.0] * gdim
     for name, (kind, default, check) in _SOLVER.items():
         s[name] = c.value(t, "solver", name, kind, default, check=check)
     s["on_exit"] = c.value(t, "solver", "on_exit", "string", "error", check=("error", *sinks))
     return s
 
 
-def _body(c: _Checker, t: dict, path: str, gdim: int, materials: dict, gravity) -> dict:
+def _body(c: _Checker, t: dict, path: str, gdim: int, materials: dict, gravity, memory) -> dict:
     c.keys(t, path, ("material", "ppc", "region", "velocity", "stress"))
     b = {
         "material": c.value(t, path, "material", "string", required=True, check=tuple(materials)),
@@ -426,10 +570,19 @@ def _body(c: _Checker, t: dict, path: str, gdim: int, materials: dict, gravity) 
         "velocity": c.vector(t, path, "velocity", gdim),
         "stress": None,
     }
+    if memory is not None and b["ppc"] * BYTES_PER_PARTICLE > memory:
+        c.fail(
+            f"{path}.ppc", f"{b['ppc']} particles in one cell {_needs(b['ppc'] * BYTES_PER_PARTICLE, memory)}"
+        )
+        b["ppc"] = 1
     try:
         reference_points(gdim, b["ppc"])
     except ValueError as e:
         c.fail(f"{path}.ppc", str(e).removeprefix("ppc "))
+        b["ppc"] = 1  # no second problem from its size
+    except MemoryError:
+        c.fail(f"{path}.ppc", f"{b['ppc']} particles in one cell do not fit in memory")
+        b["ppc"] = 1
     s = c.table(t, "stress", path, required=False)
     if s is not None:
         spath = f"{path}.stress"
@@ -468,6 +621,9 @@ def _time(c: _Checker, t: dict | None) -> dict:
     c.keys(t, "time", ("start", "end"))
     start = c.value(t, "time", "start", "number", 0.0, check=Range(-INF, INF))
     end = c.value(t, "time", "end", "number", None, True, Range(start, INF, "s"))
+    if end is not None and not math.isfinite(end - start):
+        c.fail("time.end", f"end - start overflows, got {_show(end)} and {_show(start)}")
+        end = None
     return {"start": start, "end": end if end is not None else start}
 
 
@@ -567,26 +723,73 @@ def _make_mesh(m: dict, comm):
     return partition.create_rectangle(comm, corners, m["cells"], weight=count, diagonal=m["diagonal"])
 
 
+def _agree(comm, errors: list[str]) -> list[str]:
+    """The problems found on any rank, in order, on every rank (collective)."""
+    return list(dict.fromkeys(e for rank in comm.allgather(errors) for e in rank))
+
+
+def _regions(cfg: dict):
+    """``(TOML path, region spec)`` of every body, wall and sink."""
+    for table in ("bodies", "walls", "sinks"):
+        for name, t in cfg[table].items():
+            if t["region"]:
+                yield f"{table}.{name}.region", t["region"]
+
+
+def _evaluate(errors: list[str], path: str, region: Region, x: np.ndarray) -> None:
+    """Evaluate ``region`` at the points ``x`` (``shape=(3, n)``), a problem into ``errors``."""
+    try:
+        region(x)
+    except ValueError as e:
+        errors.append(f"{path}: {e}")
+
+
 def build(cfg: dict, comm=MPI.COMM_WORLD) -> Simulation:
     """The objects of a validated scenario, at its start time (collective over ``comm``).
 
+    Every region and field expression is evaluated once on the mesh's nodes or the seeded
+    particles, so that one that fails at run time fails here; sizes are checked against the
+    available memory before the mesh and the particles are made.
+
     Raises:
         ScenarioError: problems only the mesh reveals (a wall that holds no node, a body with
-            no particle, a mesh of the wrong dimension), each with its TOML path.
+            no particle, a mesh of the wrong dimension, an expression that fails on the
+            mesh, a time step that makes the run too long), each with its TOML path.
 
     """
-    errors = []
+    memory = _available_total(comm)
+    if cfg["mesh"]["shape"] != "file":
+        errors = _size_errors(_num_cells(cfg["mesh"]), cfg["bodies"], memory, "mesh.cells")
+        if errors:
+            raise ScenarioError(errors)
     try:
         grid = Grid(_make_mesh(cfg["mesh"], comm))
-    except (ValueError, RuntimeError, OSError) as e:
-        raise ScenarioError([f"mesh: {e}"]) from None
+    except (ValueError, RuntimeError, OSError, MemoryError) as e:
+        raise ScenarioError([f"mesh: {str(e) or 'out of memory'}"]) from None
     if grid.gdim != cfg["mesh"]["gdim"]:
         raise ScenarioError(
             [f"mesh.gdim: the mesh has dimension {grid.gdim}, the scenario says {cfg['mesh']['gdim']}"]
         )
+    if cfg["mesh"]["shape"] == "file":
+        cells = grid.mesh.topology.index_map(grid.mesh.topology.dim).size_global
+        errors = _size_errors(cells, cfg["bodies"], memory, "mesh.file")
+        if errors:
+            raise ScenarioError(errors)
     lo, hi = grid.node_x.min(axis=0, initial=INF), grid.node_x.max(axis=0, initial=-INF)
     extent = comm.allreduce(float(np.max(hi - lo, initial=0.0)), MPI.MAX)
     tol = 1e-9 * extent
+    diagonal = math.hypot(
+        *(comm.allreduce(float(b), MPI.MAX) - comm.allreduce(float(a), MPI.MIN) for a, b in zip(lo, hi))
+    )
+
+    # Every region once on the nodes: an expression that fails or is not a condition.
+    nodes = np.ascontiguousarray(grid.node_x.T)
+    errors = []
+    for path, spec in _regions(cfg):
+        _evaluate(errors, path, _make_region(spec, tol), nodes)
+    errors = _agree(comm, errors)
+    if errors:
+        raise ScenarioError(errors)
 
     names = list(cfg["materials"])
     materials = []
@@ -604,21 +807,45 @@ def build(cfg: dict, comm=MPI.COMM_WORLD) -> Simulation:
             P = seed(grid, materials[k], ppc=b["ppc"], where=where, material_index=k)
         except ValueError as e:
             errors.append(f"bodies.{name}.region: {e}")
-            continue
-        if comm.allreduce(len(P), MPI.SUM) == 0:
+            P = None
+        except MemoryError:
+            errors.append(f"bodies.{name}.ppc: the particles do not fit in memory")
+            P = None
+        if comm.allreduce(0 if P is None else len(P), MPI.SUM) == 0 and P is not None:
             errors.append(f"bodies.{name}.region: holds no particles on this mesh")
+        if P is None:
+            continue
         for i, v in enumerate(b["velocity"] or []):
-            P.v[:, i] = Expression(v)(P.x.T) if isinstance(v, str) else v
+            try:
+                P.v[:, i] = Expression(v).numbers(P.x.T) if isinstance(v, str) else v
+            except ValueError as e:
+                errors.append(f"bodies.{name}.velocity[{i}]: {e}")
         if b["stress"] is not None:
             mat = materials[k]
             K0 = b["stress"]["K0"] if b["stress"]["K0"] is not None else mat.nu / (1.0 - mat.nu)
-            g = float(np.linalg.norm(gravity))
-            P.sigma = geostatic_stress(P.x, mat.rho, g, b["stress"]["surface"], K0, grid.gdim)
+            g = math.hypot(*gravity)
+            with np.errstate(all="ignore"):
+                P.sigma = geostatic_stress(P.x, mat.rho, g, b["stress"]["surface"], K0, grid.gdim)
+            if not np.all(np.isfinite(P.sigma)):
+                errors.append(
+                    f"bodies.{name}.stress: the geostatic stress overflows (rho = {mat.rho:g} kg/m^3, "
+                    f"g = {g:g} m/s^2, surface = {b['stress']['surface']:g} m)"
+                )
+        if not (np.all(np.isfinite(P.mass)) and np.all(P.mass > 0.0) and np.all(P.volume > 0.0)):
+            errors.append(
+                f"bodies.{name}.material: particle masses rho * volume are not positive finite numbers "
+                f"(rho = {materials[k].rho:g} kg/m^3)"
+            )
         P.ensure_state(state_fields)
         if particles is None:
             particles = P
         else:
             particles.extend(P)
+
+    # The sinks also on the particles (they act on particle positions at every step).
+    if particles is not None:
+        for name, spec in cfg["sinks"].items():
+            _evaluate(errors, f"sinks.{name}.region", _make_region(spec["region"], tol), particles.x.T)
 
     walls = {}
     for name, w in cfg["walls"].items():
@@ -634,6 +861,10 @@ def build(cfg: dict, comm=MPI.COMM_WORLD) -> Simulation:
             walls[name] = FrictionalWall(nodes, normal=tuple(w["normal"]), mu=mu)
         else:
             walls[name] = VelocityBC(nodes, velocity=np.array(w["velocity"]))
+    errors = _agree(comm, errors)
+    if errors:
+        raise ScenarioError(errors)
+    errors = _averaging_errors(cfg["nonlocal"], particles, grid.gdim, diagonal, memory, comm)
     if errors:
         raise ScenarioError(errors)
 
@@ -641,11 +872,74 @@ def build(cfg: dict, comm=MPI.COMM_WORLD) -> Simulation:
     n = cfg["nonlocal"]
     averaging = NonlocalAverage(n["radius"], n["weight"], n["skin"]) if n["radius"] > 0.0 else None
     s = cfg["solver"]
-    solver = Solver(
-        grid, particles, materials, bcs=list(walls.values()), gravity=gravity, sinks=sinks,
-        averaging=averaging, **{k: s[k] for k in ("on_exit", *_SOLVER)},
-    )  # fmt: skip
+    try:
+        solver = Solver(
+            grid, particles, materials, bcs=list(walls.values()), gravity=gravity, sinks=sinks,
+            averaging=averaging, **{k: s[k] for k in ("on_exit", *_SOLVER)},
+        )  # fmt: skip
+    except ValueError as e:
+        raise ScenarioError([f"solver: {e}"]) from None
+    errors = _step_errors(cfg, solver.dt)
+    if errors:
+        raise ScenarioError(errors)
     start = cfg["time"]["start"]
     # A negative start is whole steps before t = 0, so that t = 0 (an opening, say) is a step.
     solver.time = -math.ceil(-start / solver.dt) * solver.dt if start < 0.0 else start
     return Simulation(cfg, solver, walls, applied=[])
+
+
+def _averaging_errors(n: dict, particles, gdim: int, diagonal: float, memory, comm) -> list[str]:
+    """Problems of the non-local radius and skin on this mesh with these particles (collective)."""
+    if n["radius"] == 0.0:
+        return []
+    skin = 0.25 * n["radius"] if n["skin"] is None else n["skin"]
+    reach = n["radius"] + skin
+    if n["radius"] < 1e-9 * diagonal:
+        return [
+            f"nonlocal.radius: must be at least 1e-9 times the mesh's diagonal {diagonal:g} m, "
+            f"got {n['radius']:g}"
+        ]
+    if reach > 10.0 * diagonal:
+        return [
+            f"nonlocal.{'radius' if n['radius'] > skin else 'skin'}: radius + skin = {reach:g} m is more "
+            f"than 10 times the mesh's diagonal {diagonal:g} m (every particle would weigh nearly alike)"
+        ]
+    count = comm.allreduce(len(particles), MPI.SUM)
+    volume = comm.allreduce(float(np.sum(particles.volume)), MPI.SUM)
+    ball = math.pi * reach * reach * (1.0 if gdim == 2 else 4.0 / 3.0 * reach)  # no OverflowError
+    pairs = 0.5 * count * min(count, count * ball / volume)
+    need = pairs * BYTES_PER_PAIR
+    if memory is None or need <= memory:
+        return []
+    return [
+        f"nonlocal.radius: about {pairs:.3g} pairs of particles within radius + skin = {reach:g} m "
+        f"{_needs(need, memory)}"
+    ]
+
+
+def _step_errors(cfg: dict, dt: float) -> list[str]:
+    """Problems of the time step ``dt`` [s]: the run's step count, the time's precision."""
+    if not 0.0 < dt < INF:
+        if cfg["solver"]["dt"] is not None:
+            return [f"solver.dt: the time step is {dt:g} s, not a positive finite number"]
+        return [
+            f"mesh: the time step courant * smallest cell height / p-wave speed is {dt:g} s, "
+            "not a positive finite number"
+        ]
+    start, end = cfg["time"]["start"], cfg["time"]["end"]
+    steps, scale = (end - start) / dt, max(abs(start), abs(end)) / dt
+    if steps > MAX_STEPS:
+        return [
+            f"time.end: the run from t = {start:g} s to {end:g} s would take more than {MAX_STEPS:g} steps "
+            f"of {dt:.3g} s"
+        ]
+    if scale > MAX_STEPS:
+        return [
+            f"time.end: steps of {dt:.3g} s at t = {max(abs(start), abs(end)):g} s are below the time's "
+            f"precision (|t| / dt above {MAX_STEPS:g})"
+        ]
+    return [
+        f"output.{k}: {cfg['output'][k]:g} s is not a finite number of steps of {dt:.3g} s"
+        for k in ("interval", "checkpoint_interval", "figure_interval")
+        if not math.isfinite(cfg["output"][k] / dt)
+    ]

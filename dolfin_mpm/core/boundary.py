@@ -14,9 +14,11 @@ __all__ = ["BoundaryCondition", "FixedBC", "FrictionalWall", "SlipBC", "Velocity
 
 
 def _unit(normal, gdim: int) -> np.ndarray:
+    """``normal`` scaled to length 1; refuses a zero, NaN or infinite component."""
     n = np.asarray(normal, dtype=np.float64).ravel()
-    if n.shape != (gdim,) or not np.linalg.norm(n) > 0:
-        raise ValueError(f"normal must be a non-zero vector of length {gdim}, got {normal!r}")
+    if n.shape != (gdim,) or not np.all(np.isfinite(n)) or not np.any(n):
+        raise ValueError(f"normal must be a non-zero vector of {gdim} finite numbers, got {normal!r}")
+    n = n / np.max(np.abs(n))  # first by the largest component: the norm neither overflows nor underflows
     return n / np.linalg.norm(n)
 
 
@@ -59,6 +61,8 @@ class VelocityBC(BoundaryCondition):
         v = np.asarray(self.velocity, dtype=np.float64)
         if v.ndim not in (1, 2) or (v.ndim == 2 and v.shape[0] != len(self.nodes)):
             raise ValueError(f"velocity must have shape (gdim,) or ({len(self.nodes)}, gdim), got {v.shape}")
+        if np.isinf(v).any():
+            raise ValueError("velocity must be finite (NaN for a free component), got an infinite one")
         self.velocity = np.broadcast_to(v, (len(self.nodes), v.shape[-1]))
         self._set = ~np.isnan(self.velocity)
 
