@@ -191,7 +191,7 @@ class Expression:
         try:
             with np.errstate(all="ignore"):
                 value = eval(self._code, {"__builtins__": {}}, names)  # the tree checked in __init__
-            return np.broadcast_to(np.asarray(value), (x.shape[1],))
+            return np.array(np.broadcast_to(np.asarray(value), (x.shape[1],)))  # own memory: DOLFINx reads it
         except (ArithmeticError, TypeError, ValueError, MemoryError) as e:
             raise ValueError(f"expression {self.text!r} fails: {e}") from None
 
