@@ -318,3 +318,16 @@ def test_a_live_run_folder_is_not_clobbered_and_a_stale_lock_is_taken_over(scena
     end = "time.end=0.006"
     assert main(["run", str(scenario_file), "--output", str(folder), "--force", "--quiet", "--set", end]) == 0
     assert not lock.exists() and (folder / "checkpoint.h5").exists()
+
+
+def test_history_counts_are_whole_numbers_and_a_resume_cannot_go_back_in_time(
+    scenario_file, reference, capsys
+):
+    folder = scenario_file.parent / "reference"
+    rows = (folder / "history.csv").read_text().splitlines()
+    columns = rows[0].split(",")
+    for row in rows[1:]:
+        values = dict(zip(columns, row.split(",")))
+        assert values["step"].isdigit() and values["particles"].isdigit(), row
+    assert main(["resume", str(folder), "--quiet", "--set", "time.end=0.01"]) == 2
+    assert "before the checkpoint's t = 0.04" in capsys.readouterr().err

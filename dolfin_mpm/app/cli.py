@@ -149,6 +149,10 @@ def _continue(args, comm, folder: Path, info: dict) -> int:
     if args.set and comm.rank == 0:
         write_run_info(folder, (folder / "scenario.toml").read_text(), {**info, "set": overrides})
     s = sim.solver
+    if (cfg["time"]["end"] - s.time) / s.dt < -1e-9:
+        return _fail(
+            comm, f"time.end = {cfg['time']['end']:g} s is before the checkpoint's t = {s.time:.6g} s", 2
+        )
     print_root(comm, f"resuming {folder} at step {s.step_count}, t = {s.time:.6g} s")
     return _drive(Runner(sim, folder, history=data["history"], progress=not args.quiet), comm, folder)
 

@@ -126,7 +126,9 @@ class Runner:
         with open(tmp, "w", newline="") as f:
             w = csv.writer(f)
             w.writerow(HISTORY)
-            w.writerows(zip(*(self.history[k] for k in HISTORY)))
+            counts = [k in ("step", "particles") for k in HISTORY]  # whole numbers, also after a resume
+            rows = zip(*(self.history[k] for k in HISTORY))
+            w.writerows([int(v) if count else v for v, count in zip(row, counts)] for row in rows)
         os.replace(tmp, path)
 
     def _snapshot(self) -> None:

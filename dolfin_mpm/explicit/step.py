@@ -357,14 +357,18 @@ def _check_finite(state: State) -> None:
     P = state.particles
     if np.isfinite(P.sigma.sum() + P.v.sum() + P.x.sum()) and np.all(P.volume > 0.0):
         return  # finite sums have finite terms (an overflowing sum only costs the full check)
-    bad = ~(
-        np.isfinite(P.sigma).all(axis=(1, 2)) & np.isfinite(P.v).all(axis=1) & np.isfinite(P.x).all(axis=1)
-    )
-    bad |= ~(P.volume > 0.0)
+    fields = {
+        "a non-finite stress": ~np.isfinite(P.sigma).all(axis=(1, 2)),
+        "a non-finite velocity": ~np.isfinite(P.v).all(axis=1),
+        "a non-finite position": ~np.isfinite(P.x).all(axis=1),
+        "a non-positive volume": ~(P.volume > 0.0),
+    }
+    bad = np.logical_or.reduce(list(fields.values()))
     if not bad.any():
         return
     i = np.flatnonzero(bad)[0]
+    what = " and ".join(name for name, mask in fields.items() if mask[i])
     raise SimulationError(
-        f"step {state.step}, t = {state.time:.6g} s: particle {P.id[i]} at x = {P.x[i]} "
-        f"has non-finite stress or velocity, or non-positive volume ({bad.sum()} particles)"
+        f"step {state.step}, t = {state.time:.6g} s: particle {P.id[i]} at x = {P.x[i]} has {what} "
+        f"({bad.sum()} particles with non-finite stress, velocity or position, or non-positive volume)"
     )
