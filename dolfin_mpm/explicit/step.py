@@ -186,10 +186,13 @@ class Constitutive:
                 state = {name: P.state[name][idx] for name in material.state_fields()}
                 self.groups.append((material, idx, state))
         #: ``m / rho_c`` of each particle [m^3] (inf where never apart); None: no material separates.
-        self.critical_volume = None
+        self.critical_volume = self.apart = None
         if any(m.rho_c is not None for m in materials):
             rho_c = np.array([np.inf if m.rho_c is None else m.rho_c for m in materials])
             self.critical_volume = P.mass / rho_c[P.material]
+            #: Points apart at the start of the step: stress free through the step (the contact
+            #: state lags a step, as an explicit scheme may, and stays fixed in the loop's iterates).
+            self.apart = P.state["free_volume"] > 0.0
 
     def increments(self, P: Particles, L: np.ndarray, dt: float) -> tuple[list, np.ndarray]:
         """Each group's trial state and every particle's local increment ``de``, ``shape=(n,)``."""
@@ -283,7 +286,7 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         sigma = constitutive.stresses(P, trials, de, de_bar)
         volume, free_volume = constitutive.volumes(P, L, dt)
         if free_volume is not None:
-            sigma[free_volume > 0.0] = 0.0  # apart: stress free until the free volume closes
+            sigma[constitutive.apart] = 0.0  # stress free until the free volume has closed
         timer.lap("stress")
         if average is None:
             break
