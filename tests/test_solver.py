@@ -111,7 +111,7 @@ def test_non_finite_state_stops_with_step_and_particle():
     mat = dm.LinearElastic(E=1e3, nu=0.3, rho=1.0)
     P = dm.seed(grid, mat, ppc=1)
     P.sigma[7, 0, 0] = np.nan
-    with pytest.raises(dm.SimulationError, match=r"step 1, .*particle \d+ at x = .*non-finite"):
+    with pytest.raises(dm.SimulationError, match=r"step 1, .*particle \d+ at x = .* has a non-finite stress"):
         dm.Solver(grid, P, mat).step()
 
 
@@ -176,13 +176,3 @@ def test_stage_times_do_not_overlap_and_add_up_to_the_step(monkeypatch):
         solver.timings
     )
     assert solver.timer.total == readings - 1
-
-
-@pytest.mark.filterwarnings("ignore::RuntimeWarning")
-def test_the_non_finite_error_names_the_field():
-    grid = dm.Grid(rectangle((0, 0), (1, 1), (5, 5)))
-    mat = dm.LinearElastic(E=1e3, nu=0.3, rho=1.0)
-    P = dm.seed(grid, mat, ppc=1)
-    P.sigma[7, 0, 0] = np.nan
-    with pytest.raises(dm.SimulationError, match=r"particle \d+ at x = .* has a non-finite stress"):
-        dm.Solver(grid, P, mat).step()
