@@ -54,26 +54,27 @@ def check_geometry(width: float, height: float, outlet: float, h: float) -> None
         raise ValueError(
             f"h = {h} m cannot resolve the outlet: need at least 4 cells across it (h <= {outlet / 4} m)"
         )
-    for name, length in (
-        ("width", width),
-        ("height", height),
-        ("(width - outlet) / 2", 0.5 * (width - outlet)),
-    ):
+    for name, length in (("width", width), ("height", height)):
         if abs(length / h - round(length / h)) > 1e-6:
             raise ValueError(f"h = {h} m must divide the {name} = {length} m into whole cells")
 
 
 def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, height=0.3, outlet=0.1, ppc=4,
-          comm=MPI.COMM_WORLD, strips=True):  # fmt: skip
+          shift=0.0, comm=MPI.COMM_WORLD, strips=True):  # fmt: skip
     """The silo on a mesh of ``h`` [m]: solver, sinks and the outlet's gate, before settling.
 
+    The walls, the bottom plates and the gate are rigid walls as geometry
+    (:class:`dolfin_mpm.RigidWall`): the outlet is ``outlet`` wide wherever the nodes fall.
+
     Args:
-        h: cell size [m] (squares of two triangles); must divide the silo's sizes.
+        h: cell size [m] (squares of two triangles); must divide the silo's width and height.
         radius: non-local radius r [m]; 0 for the local (viscoplastic) model.
         weight: the averaging weight.
         wall_friction: wall and bottom friction angle [degrees], in [0, 90).
         width, height, outlet: silo sizes [m]; the outlet is centred in the bottom.
         ppc: particles per triangle.
+        shift: the mesh shifted sideways by this fraction of a cell, in [0, 1): 0 puts the side
+            walls and (for ``(width - outlet) / 2`` a multiple of ``h``) the outlet edges on nodes.
         comm: the communicator the mesh is partitioned over.
         strips: on several ranks, deal the cells to them in vertical strips of equal fill
             (else DOLFINx partitions them).
@@ -85,6 +86,8 @@ def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, he
     check_geometry(width, height, outlet, h)
     if not 0.0 <= wall_friction < 90.0:
         raise ValueError(f"wall_friction must be in [0, 90) degrees, got {wall_friction}")
+    if not 0.0 <= shift < 1.0:
+        raise ValueError(f"shift must be in [0, 1) cells, got {shift}")
     x0, x1 = 0.5 * (width - outlet), 0.5 * (width + outlet)  # outlet edges
     drop = 0.5 * outlet  # free fall below the outlet down to the catch line
     rows_below = math.ceil(drop / h) + 1
@@ -94,35 +97,28 @@ def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, he
     grid = dm.Grid(
         dm.partition.create_rectangle(
             comm,
-            [(0.0, -rows_below * h), (width, height + h)],  # a spare row on top
-            (round(width / h), rows_below + round(height / h) + 1),
+            [(-shift * h, -rows_below * h), (width + (shift > 0) * (1 - shift) * h, height + h)],  # spare row
+            (round(width / h) + (shift > 0), rows_below + round(height / h) + 1),
             weight=(lambda x: (x[1] > 0.0) & (x[1] < height)) if strips else None,
             axes=(0,),
         )
     )
     sand = dm.DruckerPragerViscoplastic(**SAND)
-    P = dm.seed(grid, sand, ppc=ppc, where=lambda x: (x[1] > 0.0) & (x[1] < height))
+    inside = lambda x: (x[0] > 0.0) & (x[0] < width) & (x[1] > 0.0) & (x[1] < height)  # noqa: E731
+    P = dm.seed(grid, sand, ppc=ppc, where=inside)
     # Geostatic stress: sigma_yy = -rho g depth, sigma_xx = sigma_zz = K0 sigma_yy.
     K0 = SAND["nu"] / (1.0 - SAND["nu"])
     P.sigma = dm.geostatic_stress(P.x, SAND["rho"], G, height, K0)
 
     mu = math.tan(math.radians(wall_friction))
-    tol = 1e-9
-    at = lambda a, b: np.abs(a - b) < tol  # noqa: E731
-    walls = [
-        dm.FrictionalWall(grid.nodes_where(lambda x: at(x[0], 0.0) & (x[1] > -tol)), normal=(-1, 0), mu=mu),
-        dm.FrictionalWall(grid.nodes_where(lambda x: at(x[0], width) & (x[1] > -tol)), normal=(1, 0), mu=mu),
-        dm.FrictionalWall(
-            grid.nodes_where(lambda x: at(x[1], 0.0) & ((x[0] < x0 + tol) | (x[0] > x1 - tol))),
-            normal=(0, -1),
-            mu=mu,
-        ),
+    top = height + h
+    walls = [  # each with the material on its left, going from its first point to its second
+        dm.RigidWall([(0.0, top), (0.0, 0.0)], mu, "left wall"),
+        dm.RigidWall([(0.0, 0.0), (x0, 0.0)], mu, "left plate"),
+        dm.RigidWall([(x1, 0.0), (width, 0.0)], mu, "right plate"),
+        dm.RigidWall([(width, 0.0), (width, top)], mu, "right wall"),
     ]
-    gate = dm.FrictionalWall(
-        grid.nodes_where(lambda x: at(x[1], 0.0) & (x[0] > x0 + tol) & (x[0] < x1 - tol)),
-        normal=(0, -1),
-        mu=mu,
-    )
+    gate = dm.RigidWall([(x0, 0.0), (x1, 0.0)], mu, "gate")
     sink = dm.Sink(
         "discharged", region=lambda x: (x[1] < -drop) | ((x[1] < 0.0) & ((x[0] < x0) | (x[0] > x1)))
     )
@@ -171,12 +167,12 @@ class Monitor:
 
 
 def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, height=0.3, outlet=0.1,
-        ppc=4, t_end=0.25, t_settle=0.02, output=None, interval=0.005, progress=True,
+        ppc=4, shift=0.0, t_end=0.25, t_settle=0.02, output=None, interval=0.005, progress=True,
         comm=MPI.COMM_WORLD):  # fmt: skip
     """Settle the fill, open the outlet at t = 0 and discharge until ``t_end`` [s].
 
     Args:
-        h, radius, weight, wall_friction, width, height, outlet, ppc, comm: as for :func:`build`.
+        h, radius, weight, wall_friction, width, height, outlet, ppc, shift, comm: as for :func:`build`.
         t_end: end of the discharge [s].
         t_settle: length of the damped settling phase before the opening [s].
         output: folder for the XDMF series (particles and grid), or ``None``.
@@ -194,7 +190,7 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, heig
             raise ValueError(f"{name} must be > 0 s, got {value!r}")
     if not t_settle >= 0.0:
         raise ValueError(f"t_settle must be >= 0 s, got {t_settle!r}")
-    solver, gate = build(h, radius, weight, wall_friction, width, height, outlet, ppc, comm)
+    solver, gate = build(h, radius, weight, wall_friction, width, height, outlet, ppc, shift, comm)
     m0 = solver.total_mass()
     t0 = time.perf_counter()
     # ## Settling on the closed outlet (damped), then the opening
@@ -247,6 +243,7 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, heig
         "mean_iterations": fp["iterations"] / fp["steps"] if fp["steps"] else 1.0,
         "max_iterations": fp["max_iterations"],
         "unconverged": fp["unconverged"],
+        "wall_stops": comm.allreduce(solver.state.wall_stops),
     }
 
 
@@ -303,9 +300,10 @@ STUDIES = {
 ARRAYS = ("t", "discharged", "x", "e_vp_bar", "profile_x", "profile_e_vp_bar", "profile_v_y")
 
 
-def run_key(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0) -> str:
+def run_key(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, shift=0.0) -> str:
     """Name of a stored run: the study parameters; every other setting is :func:`run`'s default."""
-    return f"h{1e3 * h:g}mm_r{1e3 * radius:g}mm_{weight}_wall{wall_friction:g}"
+    shifted = f"_shift{shift:g}" if shift else ""
+    return f"h{1e3 * h:g}mm_r{1e3 * radius:g}mm_{weight}_wall{wall_friction:g}{shifted}"
 
 
 def stored_run(folder: Path, **params) -> dict | None:

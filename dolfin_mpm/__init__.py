@@ -25,6 +25,7 @@ _PUBLIC = {
     "NonlocalAverage": "dolfin_mpm.averaging",
     "Output": "dolfin_mpm.io.xdmf",
     "Particles": "dolfin_mpm.core.particles",
+    "RigidWall": "dolfin_mpm.core.walls",
     "SimulationError": "dolfin_mpm.explicit.solver",
     "Sink": "dolfin_mpm.core.particles",
     "SlipBC": "dolfin_mpm.core.boundary",

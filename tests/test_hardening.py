@@ -112,7 +112,7 @@ def test_the_whitelist_keeps_what_expressions_are_for():
     for text, expected in cases.items():
         assert np.allclose(Expression(text)(x), expected), text
     sim = scenario.build(scenario.load(BAR, ['walls.clamp.region="(x < 1e-9) & (y > -1)"']))
-    assert len(sim.walls["clamp"].nodes) == 2
+    assert len(sim.walls["clamp"][0].nodes) == 2
 
 
 def test_expressions_see_copies_of_the_coordinates():
@@ -193,9 +193,9 @@ def test_numbers_that_must_be_finite_are_checked(overrides, path, fragment):
 def test_an_overflowing_normal_keeps_its_wall():
     """A normal of 1e308 components had a norm of inf: the wall held nodes with a zero normal."""
     sim = scenario.build(scenario.load(BAR, ["walls.rollers.normal=[1e308, 1e308]"]))
-    assert np.allclose(sim.walls["rollers"].normal, [np.sqrt(0.5), np.sqrt(0.5)])
+    assert np.allclose(sim.walls["rollers"][0].normal, [np.sqrt(0.5), np.sqrt(0.5)])
     tiny = scenario.build(scenario.load(BAR, ["walls.rollers.normal=[0.0, 1e-320]"]))
-    assert np.array_equal(tiny.walls["rollers"].normal, [0.0, 1.0])
+    assert np.array_equal(tiny.walls["rollers"][0].normal, [0.0, 1.0])
 
 
 @pytest.mark.parametrize("cls", [SlipBC, FrictionalWall])

@@ -27,11 +27,12 @@ from mpi4py import MPI
 from dolfin_mpm.app.regions import Expression, Region
 from dolfin_mpm.averaging.nonlocal_average import WEIGHTS, NonlocalAverage
 from dolfin_mpm.core import compat
-from dolfin_mpm.core.boundary import BoundaryCondition, FixedBC, FrictionalWall, SlipBC, VelocityBC
+from dolfin_mpm.core.boundary import FixedBC, FrictionalWall, SlipBC, VelocityBC
 from dolfin_mpm.core.grid import Grid
 from dolfin_mpm.core.particles import Sink
 from dolfin_mpm.core.seeding import geostatic_stress, reference_points, seed
-from dolfin_mpm.explicit.options import INTEGERS, SCHEMES, Options
+from dolfin_mpm.core.walls import RigidWall
+from dolfin_mpm.explicit.options import INTEGERS, SCHEMES, TRANSFERS, VOLUMETRIC, Options
 from dolfin_mpm.explicit.solver import Solver
 from dolfin_mpm.materials import DruckerPragerViscoplastic, LinearElastic
 from dolfin_mpm.parallel import partition
@@ -68,6 +69,8 @@ _DIAGONALS = ("right", "left", "crossed", "right/left", "left/right")
 #: choices), as :class:`~dolfin_mpm.explicit.options.Options` declares them.
 _SOLVER = {
     "scheme": ("string", Options.scheme, SCHEMES),
+    "transfer": ("string", Options.transfer, TRANSFERS),
+    "volumetric": ("string", Options.volumetric, VOLUMETRIC),
     **{
         name: ("integer" if name in INTEGERS else "number", p.default, p.range)
         for name, p in parameters(Options).items()
@@ -599,6 +602,8 @@ def _body(c: _Checker, t: dict, path: str, gdim: int, materials: dict, gravity, 
 
 def _wall(c: _Checker, t: dict, path: str, gdim: int) -> dict:
     kind = c.value(t, path, "type", "string", required=True, check=_WALLS)
+    if "segment" in t or "polygon" in t:
+        return _rigid_wall(c, t, path, gdim, kind)
     extra = {"slip": ("normal",), "frictional": ("normal", "friction_angle"), "velocity": ("velocity",)}
     c.keys(t, path, ("type", "region", *extra.get(kind, ())))
     w = {"type": kind, "region": c.region(t, path, "region", gdim)}
@@ -607,11 +612,50 @@ def _wall(c: _Checker, t: dict, path: str, gdim: int) -> dict:
         if w["normal"] is not None and not any(w["normal"]):
             c.fail(f"{path}.normal", "must be a non-zero vector")
     if kind == "frictional":
-        w["friction_angle"] = c.value(
-            t, path, "friction_angle", "number", 0.0, check=Range(0.0, 90.0, "degrees", (True, False))
-        )
+        w["friction_angle"] = _friction_angle(c, t, path)
     if kind == "velocity":
         w["velocity"] = c.value(t, path, "velocity", "numbers", required=True, size=gdim)
+    return w
+
+
+def _friction_angle(c: _Checker, t: dict, path: str) -> float:
+    return c.value(t, path, "friction_angle", "number", 0.0, check=Range(0.0, 90.0, "degrees", (True, False)))
+
+
+def _rigid_wall(c: _Checker, t: dict, path: str, gdim: int, kind: str) -> dict:
+    """A rigid wall as geometry: ``segment = [[x0, y0], [x1, y1]]`` or ``polygon = [[x, y], ...]``."""
+    key = "segment" if "segment" in t else "polygon"
+    c.keys(t, path, ("type", key, *(("friction_angle",) if kind == "frictional" else ())))
+    w = {"type": kind, "region": None, key: None, "friction_angle": 0.0}
+    if "segment" in t and "polygon" in t:
+        c.fail(path, "give a segment or a polygon, not both")
+        return w
+    if kind not in ("slip", "frictional"):
+        c.fail(f"{path}.type", f"a wall given as a {key} is 'slip' or 'frictional', got {_show(kind)}")
+        return w
+    if gdim != 2:
+        c.fail(f"{path}.{key}", f"walls as geometry are segments in 2D, the mesh is {gdim}D (use a region)")
+        return w
+    points = t[key]
+    shape_ok = (
+        isinstance(points, list)
+        and (len(points) == 2 if key == "segment" else len(points) >= 2)
+        and all(isinstance(p, list) and len(p) == 2 for p in points)
+        and all(isinstance(a, (int, float)) and not isinstance(a, bool) for p in points for a in p)
+    )
+    if not shape_ok:
+        count = "two points" if key == "segment" else "two or more points"
+        c.fail(f"{path}.{key}", f"must be {count} [[x, y], ...] of numbers, got {_show(points)}")
+        return w
+    if kind == "frictional":
+        w["friction_angle"] = _friction_angle(c, t, path)
+    try:
+        for k in range(len(points) - 1):
+            RigidWall(points[k : k + 2], name=f"{path}.{key}")
+    except ValueError as e:
+        c.fail(f"{path}.{key}", str(e).split(": ", 1)[1])
+        return w
+    w[key] = [[float(a) for a in p] for p in points]
     return w
 
 
@@ -681,20 +725,20 @@ class Simulation:
     Attributes:
         config: the validated scenario.
         solver: the solver (grid, particles, materials, walls, sinks, averaging).
-        walls: the boundary conditions by name, in file order.
+        walls: the boundary conditions of each named wall (a rigid wall's segments), in file order.
         applied: indices of ``config["events"]`` already applied.
 
     """
 
     config: dict
     solver: Solver
-    walls: dict[str, BoundaryCondition]
+    walls: dict[str, list]
     applied: list[int]
 
     def apply_event(self, k: int) -> None:
         """Apply event ``k``: remove its walls, set its damping."""
         event = self.config["events"][k]
-        gone = {id(self.walls[name]) for name in event["remove_walls"]}
+        gone = {id(bc) for name in event["remove_walls"] for bc in self.walls[name]}
         self.solver.bcs = [bc for bc in self.solver.bcs if id(bc) not in gone]
         if event["damping"] is not None:
             self.solver.damping = event["damping"]
@@ -849,18 +893,31 @@ def build(cfg: dict, comm=MPI.COMM_WORLD) -> Simulation:
 
     walls = {}
     for name, w in cfg["walls"].items():
+        if w["region"] is None:  # a rigid wall as geometry: one RigidWall per segment
+            key = "segment" if w.get("segment") else "polygon"
+            mu = math.tan(math.radians(w["friction_angle"]))
+            points = w[key]
+            walls[name] = [
+                RigidWall(points[k : k + 2], mu, f"walls.{name}.{key}") for k in range(len(points) - 1)
+            ]
+            for wall in walls[name] if particles is not None else ():
+                try:
+                    wall.check(grid, particles)
+                except ValueError as e:
+                    errors.append(str(e))
+            continue
         nodes = grid.nodes_where(_make_region(w["region"], tol))
         if comm.allreduce(len(nodes), MPI.SUM) == 0:
             errors.append(f"walls.{name}.region: holds no grid nodes")
         if w["type"] == "fixed":
-            walls[name] = FixedBC(nodes)
+            walls[name] = [FixedBC(nodes)]
         elif w["type"] == "slip":
-            walls[name] = SlipBC(nodes, normal=tuple(w["normal"]))
+            walls[name] = [SlipBC(nodes, normal=tuple(w["normal"]))]
         elif w["type"] == "frictional":
             mu = math.tan(math.radians(w["friction_angle"]))
-            walls[name] = FrictionalWall(nodes, normal=tuple(w["normal"]), mu=mu)
+            walls[name] = [FrictionalWall(nodes, normal=tuple(w["normal"]), mu=mu)]
         else:
-            walls[name] = VelocityBC(nodes, velocity=np.array(w["velocity"]))
+            walls[name] = [VelocityBC(nodes, velocity=np.array(w["velocity"]))]
     errors = _agree(comm, errors)
     if errors:
         raise ScenarioError(errors)
@@ -874,7 +931,8 @@ def build(cfg: dict, comm=MPI.COMM_WORLD) -> Simulation:
     s = cfg["solver"]
     try:
         solver = Solver(
-            grid, particles, materials, bcs=list(walls.values()), gravity=gravity, sinks=sinks,
+            grid, particles, materials, bcs=[bc for bcs in walls.values() for bc in bcs], gravity=gravity,
+            sinks=sinks,
             averaging=averaging, **{k: s[k] for k in ("on_exit", *_SOLVER)},
         )  # fmt: skip
     except ValueError as e:

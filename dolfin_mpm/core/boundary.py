@@ -10,7 +10,25 @@ import numpy as np
 
 from dolfin_mpm.params import check_range
 
-__all__ = ["BoundaryCondition", "FixedBC", "FrictionalWall", "SlipBC", "VelocityBC"]
+__all__ = ["BoundaryCondition", "FixedBC", "FrictionalWall", "SlipBC", "VelocityBC", "coulomb"]
+
+
+def coulomb(v: np.ndarray, normal: np.ndarray, mu: float) -> np.ndarray:
+    """Velocities ``v`` (``(k, gdim)``) after unilateral Coulomb contact with a wall at rest.
+
+    Velocities into the wall (along the unit ``normal``) lose their normal part, and their
+    tangential speed drops by ``mu`` times the normal speed removed (to zero: stick); velocities
+    away from the wall are kept, so material can separate from it.
+    """
+    vn = v @ normal
+    hit = vn > 0.0
+    out = v.copy()
+    vt = v[hit] - vn[hit, None] * normal
+    speed = np.linalg.norm(vt, axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        scale = np.where(speed > 0.0, np.maximum(0.0, 1.0 - mu * vn[hit] / speed), 0.0)
+    out[hit] = scale[:, None] * vt
+    return out
 
 
 def _unit(normal, gdim: int) -> np.ndarray:
@@ -98,7 +116,8 @@ class FrictionalWall(BoundaryCondition):
 
     Nodes moving into the wall lose their normal velocity; the tangential speed is reduced
     by ``mu`` times the removed normal speed (stick when that exceeds it). Nodes moving away
-    are left free, so material can separate from the wall.
+    are left free, so material can separate from the wall (:func:`coulomb`). The wall is the
+    nodes' patches: for a wall anywhere, on or off the nodes, see :mod:`dolfin_mpm.core.walls`.
 
     Args:
         normal: outward normal of the material, pointing into the wall, ``shape=(gdim,)``.
@@ -115,12 +134,4 @@ class FrictionalWall(BoundaryCondition):
         check_range("mu", self.mu, 0.0, np.inf, closed=(True, False))
 
     def apply(self, v):
-        vi = v[self.nodes]
-        vn = vi @ self.normal
-        hit = vn > 0.0
-        vt = vi[hit] - vn[hit, None] * self.normal
-        speed = np.linalg.norm(vt, axis=1)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            scale = np.where(speed > 0.0, np.maximum(0.0, 1.0 - self.mu * vn[hit] / speed), 0.0)
-        vi[hit] = scale[:, None] * vt
-        v[self.nodes] = vi
+        v[self.nodes] = coulomb(v[self.nodes], self.normal, self.mu)

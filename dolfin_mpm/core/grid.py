@@ -23,6 +23,7 @@ class Grid:
         V, Q: vector and scalar P1 spaces.
         mass, momentum, f_ext, f_int, f_contact, velocity, acceleration: nodal Functions
             [kg, kg m/s, N, N, N, m/s, m/s^2] (per metre of depth in 2D).
+        scratch: a scalar nodal Function for other sums (the walls' shares of the mass).
         cell_dofs: nodes of each cell, ``shape=(num_cells, gdim + 1)``.
         num_owned_cells: cells this rank owns; they come first, then the ghosts.
         cell_owner: rank owning each local cell, ``shape=(num_cells,)``.
@@ -72,6 +73,7 @@ class Grid:
         self.f_contact = fem.Function(self.V, name="f_contact")
         self.velocity = fem.Function(self.V, name="velocity")
         self.acceleration = fem.Function(self.V, name="acceleration")
+        self.scratch = fem.Function(self.Q, name="scratch")  # assembly buffer of nodal sums
 
         # Affine map x = x0 + J xi per cell; barycentric gradients are constant in a cell.
         X = msh.geometry.x[geom_dofs, : self.gdim]  # (num_cells, gdim+1, gdim)

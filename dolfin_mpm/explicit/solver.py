@@ -18,6 +18,7 @@ from dolfin_mpm.averaging import NonlocalAverage
 from dolfin_mpm.core.boundary import BoundaryCondition
 from dolfin_mpm.core.grid import Grid
 from dolfin_mpm.core.particles import Particles, Sink
+from dolfin_mpm.core.walls import RigidWall
 from dolfin_mpm.explicit.options import Options
 from dolfin_mpm.explicit.progress import Progress
 from dolfin_mpm.explicit.state import State
@@ -39,7 +40,8 @@ class Solver:
         particles: material points (their ``material`` indexes ``materials``; those with
             ``id < 0`` are numbered, see :func:`dolfin_mpm.parallel.ids.number`).
         materials: constitutive models.
-        bcs: nodal boundary conditions, applied in order.
+        bcs: nodal boundary conditions and rigid walls (:class:`~dolfin_mpm.core.walls.RigidWall`),
+            applied in order.
         gravity: body force per unit mass [m/s^2], ``shape=(gdim,)``; default zero.
         sinks: sinks absorbing particles in their regions each step.
         averaging: non-local average of the plastic strain increments; switches on the
@@ -80,11 +82,14 @@ class Solver:
         ):
             raise ValueError(f"particles.material must index the {len(materials)} materials")
         particles.ensure_state({k: v for m in materials for k, v in m.state_fields().items()})
+        if opts.transfer == "APIC":  # the affine part of each particle's velocity field [1/s]
+            particles.ensure_state({"affine_velocity": (grid.gdim, grid.gdim)})
         ids.number(grid.comm, particles)
         #: The largest stable time step [s]: ``courant * h_min / max p-wave speed``.
         self.critical_dt = (
             opts.courant * grid.comm.allreduce(grid.h_min, MPI.MIN) / max(m.p_wave_speed() for m in materials)
         )
+        _check_walls(grid, particles, bcs)
         self.model = Model(grid, materials, list(bcs), g, opts)
         average = None if averaging is None else over_ranks(averaging, grid.comm)
         dt = self.critical_dt if opts.dt is None else float(opts.dt)
@@ -121,6 +126,7 @@ class Solver:
 
     @bcs.setter
     def bcs(self, bcs: Sequence[BoundaryCondition]) -> None:
+        _check_walls(self.grid, self.particles, bcs)
         self.model.bcs = list(bcs)
 
     @property
@@ -232,3 +238,10 @@ class Solver:
         }
         e["total"] = e["kinetic"] + e["strain"] + e["potential"]
         return e
+
+
+def _check_walls(grid: Grid, particles: Particles, bcs: Sequence) -> None:
+    """Raise ``ValueError`` naming a rigid wall outside the mesh or with particles behind it."""
+    for bc in bcs:
+        if isinstance(bc, RigidWall):
+            bc.check(grid, particles)

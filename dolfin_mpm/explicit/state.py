@@ -34,6 +34,8 @@ class State:
             extrapolates them).
         fixed_point: the loop's counters, :data:`FIXED_POINT_STATISTICS`.
         migrated: particles moved between ranks since the start (a diagnostic, not stored).
+        wall_stops: particle moves cut short at a rigid wall since the start (a diagnostic,
+            not stored).
 
     """
 
@@ -46,6 +48,7 @@ class State:
     R_changes: list[np.ndarray] = field(default_factory=list)
     fixed_point: dict[str, int] = field(default_factory=lambda: dict.fromkeys(FIXED_POINT_STATISTICS, 0))
     migrated: int = 0
+    wall_stops: int = 0
 
     # -- serialisation -------------------------------------------------------------------------
     def scalars(self) -> dict:

@@ -33,6 +33,8 @@ from dolfin_mpm.core.grid import Grid
 from dolfin_mpm.core.locate import Basis, basis_at, locate
 from dolfin_mpm.core.particles import Particles
 from dolfin_mpm.core.transfer import gradient, internal_force, interpolate, scatter, volume_ratio
+from dolfin_mpm.core.volumetric import nodal_volumetric
+from dolfin_mpm.core.walls import contacts, stop_at_walls
 from dolfin_mpm.explicit.anderson import Anderson
 from dolfin_mpm.explicit.options import Options
 from dolfin_mpm.explicit.state import State
@@ -60,7 +62,8 @@ class Model:
     Attributes:
         grid: background grid.
         materials: constitutive models; ``particles.material`` indexes them.
-        bcs: nodal boundary conditions, applied in order.
+        bcs: nodal boundary conditions and rigid walls
+            (:class:`~dolfin_mpm.core.walls.RigidWall`), applied in order.
         gravity: body force per unit mass [m/s^2], ``shape=(gdim,)``.
         options: numerical options.
 
@@ -71,11 +74,6 @@ class Model:
     bcs: list
     gravity: np.ndarray
     options: Options
-
-    def apply_bcs(self, v: np.ndarray) -> None:
-        """Correct nodal velocities ``v`` (``shape=(num_nodes, gdim)``) in place."""
-        for bc in self.bcs:
-            bc.apply(v)
 
 
 @dataclass
@@ -88,6 +86,8 @@ class Nodal:
         momentum: [kg m/s], ``shape=(num_nodes, gdim)``.
         f_ext: external force ``F`` [N], ``shape=(num_nodes * gdim,)``.
         f_int: internal force ``R`` of the start-of-step stresses [N], same shape.
+        bcs: the step's boundary conditions: the nodal ones, and each line of rigid walls as
+            the :class:`~dolfin_mpm.core.walls.Contact` of the particles over it.
 
     """
 
@@ -96,21 +96,33 @@ class Nodal:
     momentum: np.ndarray
     f_ext: np.ndarray
     f_int: np.ndarray
+    bcs: list
+
+    def apply_bcs(self, v: np.ndarray) -> None:
+        """Correct nodal velocities ``v`` (``shape=(num_nodes, gdim)``) in place."""
+        for bc in self.bcs:
+            bc.apply(v)
 
 
 # -- stages ----------------------------------------------------------------------------------------
 def p2g(model: Model, P: Particles, basis: Basis) -> Nodal:
-    """Lumped mass, momentum, ``F = m g`` and ``R`` at the nodes, assembled over ranks."""
+    """Lumped mass, momentum, ``F = m g``, ``R`` and the walls' contacts at the nodes, over ranks.
+
+    With APIC the momentum is that of each particle's affine velocity field at the nodes,
+    ``sum_p N_i(x_p) m_p (v_p + C_p (x_i - x_p))``.
+    """
     grid = model.grid
     m = grid.assemble(grid.mass, scatter(basis, P.mass))
-    momentum = grid.assemble(grid.momentum, scatter(basis, _momenta(P.mass, P.v)))
+    C = P.state["affine_velocity"] if model.options.transfer == "APIC" else None
+    momentum = grid.assemble(grid.momentum, _momentum_sums(grid, basis, P, P.v, C))
     grid.f_ext.x.array[:] = (m[:, None] * model.gravity).ravel()  # from the assembled mass
     f_int = grid.assemble(grid.f_int, internal_force(basis, P.sigma, P.volume))
     m_max = grid.comm.allreduce(m.max() if m.size else 0.0, MPI.MAX)
     active = m > model.options.mass_tol * m_max
     inv_m = np.zeros_like(m)
     inv_m[active] = 1.0 / m[active]
-    return Nodal(m, inv_m, momentum, grid.f_ext.x.array, f_int.ravel().copy())
+    bcs = contacts(model.bcs, grid, P.x, P.mass, basis, m)
+    return Nodal(m, inv_m, momentum, grid.f_ext.x.array, f_int.ravel().copy(), bcs)
 
 
 def nodal_solve(model: Model, nodal: Nodal, R: np.ndarray, dt: float) -> tuple[np.ndarray, ...]:
@@ -131,12 +143,12 @@ def nodal_solve(model: Model, nodal: Nodal, R: np.ndarray, dt: float) -> tuple[n
     f = (nodal.f_ext - R).reshape(-1, gdim)
     v_trial = v + dt * f * inv_m
     v_new = v_trial.copy()
-    model.apply_bcs(v_new)
+    nodal.apply_bcs(v_new)
     f_contact = m * (v_new - v_trial) / dt
     if damping > 0.0:
         f_out = f + f_contact
         v_new = v + dt * (f_out - damping * np.abs(f_out) * np.sign(v)) * inv_m
-        model.apply_bcs(v_new)
+        nodal.apply_bcs(v_new)
     return v_new, (v_new - v) / dt, f_contact
 
 
@@ -146,26 +158,34 @@ def g2p(
     """Particle velocities and velocity gradients from the grid, without moving the particles.
 
     With MUSL the new particle momenta are mapped back to the nodes (through the buffer
-    ``grid.velocity``) and the strain rate comes from those velocities.
+    ``grid.velocity``) and the strain rate comes from those velocities. APIC's particles take
+    the PIC velocity and, as their affine part ``C``, the velocity gradient the strain rate
+    comes from (with MUSL that of the re-mapped velocities: light nodes at the edge of the
+    material stay out of it).
 
     Returns:
-        The new particle velocities (PIC/FLIP blend) and the grid velocity at the particles that
-        moves them, both ``shape=(n, gdim)``; the velocity gradient ``shape=(n, gdim, gdim)``;
-        and the nodal velocity it came from, ``shape=(num_nodes, gdim)``.
+        The new particle velocities (PIC/FLIP blend, or APIC's PIC velocity), ``shape=(n, gdim)``;
+        APIC's affine part, ``L`` (``None`` for FLIP); the grid velocity at the particles that
+        moves them; the velocity gradient ``L``, ``shape=(n, gdim, gdim)``; and the nodal
+        velocity it came from, ``shape=(num_nodes, gdim)``.
 
     """
-    flip, grid = model.options.flip, model.grid
+    flip, grid, apic = model.options.flip, model.grid, model.options.transfer == "APIC"
     v_interp = interpolate(basis, v_node)
-    if flip == 1.0:
-        v = P.v + dt * interpolate(basis, a_node)
-    elif flip > 0.0:
-        v = flip * (P.v + dt * interpolate(basis, a_node)) + (1.0 - flip) * v_interp
-    else:
+    if apic or flip == 0.0:
         v = v_interp
+    elif flip == 1.0:
+        v = P.v + dt * interpolate(basis, a_node)
+    else:
+        v = flip * (P.v + dt * interpolate(basis, a_node)) + (1.0 - flip) * v_interp
     if model.options.scheme == "MUSL":
         v_node = grid.assemble(grid.velocity, scatter(basis, _momenta(P.mass, v))) * nodal.inv_mass[:, None]
-        model.apply_bcs(v_node)
-    return v, v_interp, gradient(basis, v_node), v_node
+        nodal.apply_bcs(v_node)
+    L = gradient(basis, v_node)
+    C = (L.copy() if model.options.volumetric == "nodal" else L) if apic else None
+    if model.options.volumetric == "nodal":
+        L = nodal_volumetric(grid, basis, L, P.volume)
+    return v, C, v_interp, L, v_node
 
 
 class Constitutive:
@@ -275,7 +295,7 @@ def advance(model: Model, state: State, timer: Timer) -> None:
     for k in range(1, (1 if average is None else options.fixed_point_max_iter) + 1):
         v_node, a_node, f_contact = nodal_solve(model, nodal, R_node, dt)
         timer.lap("nodal_solve")
-        v, v_grid, L, v_node = g2p(model, P, basis, nodal, v_node, a_node, dt)
+        v, C, v_grid, L, v_node = g2p(model, P, basis, nodal, v_node, a_node, dt)
         timer.lap("g2p")
         trials, de = constitutive.increments(P, L, dt)
         timer.lap("return_mapping")
@@ -315,9 +335,13 @@ def advance(model: Model, state: State, timer: Timer) -> None:
     constitutive.record(P, de, de_bar, dt)
     if free_volume is not None:
         P.state["free_volume"] = free_volume
+    dx = dt * v_grid
+    state.wall_stops += stop_at_walls(model.bcs, P.x, dx, v)
     P.v = v
+    if C is not None:
+        P.state["affine_velocity"] = C
     for c in range(grid.gdim):  # by columns: numpy is slow over short rows
-        P.x[:, c] += dt * v_grid[:, c]
+        P.x[:, c] += dx[:, c]
     for f, a in ((grid.velocity, v_node), (grid.acceleration, a_node), (grid.f_contact, f_contact)):
         f.x.array[:] = a.ravel()
     state.time += dt
@@ -346,6 +370,22 @@ def _predicted_change(R_changes: list[np.ndarray], order: int) -> np.ndarray:
     """The change of the owned ``R`` in this step, extrapolated from the last steps' changes."""
     dR = R_changes[:order]
     return 2.0 * dR[0] - dR[1] if len(dR) == 2 else dR[0]
+
+
+def _momentum_sums(grid: Grid, basis: Basis, P: Particles, v: np.ndarray, C: np.ndarray | None) -> np.ndarray:
+    """Local nodal momentum sums of velocities ``v``, with APIC's affine parts ``C`` if given.
+
+    ``sum_p N_i m_p (v_p + C_p (x_i - x_p))``, ``shape=(num_nodes, gdim)``; ``C.shape=(n, gdim, gdim)``.
+    """
+    sums = scatter(basis, _momenta(P.mass, v))
+    if C is None:
+        return sums
+    g = grid.gdim
+    mC = P.mass[:, None, None] * C
+    mCx = np.einsum("pab,pb->pa", mC, P.x[:, :g])
+    moments = scatter(basis, np.concatenate([mC.reshape(-1, g * g), mCx], axis=1))
+    mC_i, mCx_i = moments[:, : g * g].reshape(-1, g, g), moments[:, g * g :]
+    return sums + np.einsum("iab,ib->ia", mC_i, grid.node_x[:, :g]) - mCx_i
 
 
 def _momenta(mass: np.ndarray, v: np.ndarray) -> np.ndarray:

@@ -1,0 +1,197 @@
+"""Rigid walls as geometry: straight segments in 2D with Coulomb friction, wherever the nodes fall.
+
+A wall is a segment ``a -> b`` with the material on its left (walk the material's boundary
+counter-clockwise); its unit normal ``n`` points to the right, into the wall. A particle is
+*over* the wall when its foot point on the wall's line lies on the segment.
+
+Contact is imposed in two places:
+
+- **On the grid**, each step: a node on or behind the wall's line takes the unilateral Coulomb
+  condition of :func:`~dolfin_mpm.core.boundary.coulomb` in the share of its lumped mass that
+  lies over the wall, ``alpha_i = sum_p N_i(x_p) m_p [p over the wall] / m_i``: its velocity
+  correction is ``alpha_i`` times the full one. This is the lumped projection of the contact
+  impulse onto the P1 nodes, the projection P2G makes of the momentum. A node under a plate
+  takes the full condition, the node at a plate's edge the share of its patch the plate
+  carries, a node under an opening none: the opening is as wide as the geometry says, on or
+  off the nodes. Walls on one line (a plate and the gate next to it) add their shares.
+- **At the particles**, in the move: a particle whose path would cross the segment stops on it
+  and loses its velocity into the wall. Where the grid condition is partial (at an edge) the
+  interpolated velocity may point into the wall; the stop keeps the wall impenetrable there.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+from mpi4py import MPI
+
+from dolfin_mpm.core.boundary import coulomb
+from dolfin_mpm.core.grid import Grid
+from dolfin_mpm.core.locate import Basis
+from dolfin_mpm.core.transfer import scatter
+from dolfin_mpm.params import check_range
+
+__all__ = ["Contact", "RigidWall", "contacts", "stop_at_walls"]
+
+#: Nodes within this fraction of the smallest cell height in front of a wall's line count as on it.
+ON_LINE = 1e-6
+
+
+@dataclass
+class RigidWall:
+    """A fixed rigid wall: a segment in 2D with Coulomb friction.
+
+    Args:
+        segment: end points ``[[x0, y0], [x1, y1]]`` [m], the material on the left going
+            from the first to the second.
+        mu: friction coefficient, >= 0 (``tan`` of the wall friction angle).
+        name: what errors call it.
+
+    """
+
+    segment: np.ndarray
+    mu: float = 0.0
+    name: str = "wall"
+
+    def __post_init__(self):
+        s = np.asarray(self.segment, dtype=np.float64)
+        if s.shape != (2, 2) or not np.all(np.isfinite(s)):
+            raise ValueError(
+                f"{self.name}: segment must be two points of 2 finite coordinates [[x0, y0], [x1, y1]], "
+                f"got {self.segment!r}"
+            )
+        d = s[1] - s[0]
+        length = float(np.hypot(*d))
+        if not length > 1e-12 * max(1.0, float(np.abs(s).max())):
+            raise ValueError(f"{self.name}: segment is degenerate (its ends coincide), got {s.tolist()}")
+        check_range(f"{self.name}: mu", self.mu, 0.0, np.inf, closed=(True, False))
+        self.segment, self.length = s, length
+        self.tangent = d / length
+        self.normal = np.array([self.tangent[1], -self.tangent[0]])  # right of a -> b: into the wall
+
+    def distance(self, x: np.ndarray) -> np.ndarray:
+        """Signed distance [m] of points ``x`` (``(n, >=2)``) from the line, > 0 on the material's side."""
+        a, n = self.segment[0], self.normal
+        return (a[0] - x[:, 0]) * n[0] + (a[1] - x[:, 1]) * n[1]
+
+    def over(self, x: np.ndarray) -> np.ndarray:
+        """Whether the foot point of each of ``x`` (``(n, >=2)``) on the line lies on the segment."""
+        a, t = self.segment[0], self.tangent
+        s = (x[:, 0] - a[0]) * t[0] + (x[:, 1] - a[1]) * t[1]
+        return (s >= 0.0) & (s <= self.length)
+
+    def check(self, grid: Grid, particles) -> None:
+        """Raise ``ValueError`` for a wall not in 2D, outside the mesh, or with particles behind it.
+
+        ``particles`` (:class:`~dolfin_mpm.core.particles.Particles`): the material must start
+        on the wall's left; collective over the grid's ranks.
+        """
+        if grid.gdim != 2:
+            raise ValueError(f"{self.name}: rigid walls are segments in 2D, the grid is {grid.gdim}D")
+        comm = grid.comm
+        lo = comm.allreduce(grid.node_x[:, :2].min(axis=0), op=MPI.MIN)
+        hi = comm.allreduce(grid.node_x[:, :2].max(axis=0), op=MPI.MAX)
+        slack = 1e-9 * float(np.max(hi - lo))
+        outside = ((self.segment < lo - slack) | (self.segment > hi + slack)).any(axis=1)
+        if outside.any():
+            raise ValueError(
+                f"{self.name}: segment point {self.segment[np.argmax(outside)].tolist()} lies outside the "
+                f"mesh [{lo[0]:g}, {hi[0]:g}] x [{lo[1]:g}, {hi[1]:g}]"
+            )
+        x = particles.x
+        behind = np.flatnonzero(self.over(x) & (self.distance(x) < -ON_LINE * grid.h_min))
+        count = comm.allreduce(behind.size, op=MPI.SUM)
+        if count:
+            first = comm.allgather(x[behind[0], :2].tolist() if behind.size else None)
+            raise ValueError(
+                f"{self.name}: {count} particles start behind the wall (the first at "
+                f"{next(p for p in first if p is not None)}); the material must lie on the left of "
+                f"the segment {self.segment.tolist()}, going from its first point to its second"
+            )
+
+
+class Contact:
+    """The walls of one line in one step: nodes and each wall's share ``alpha`` of each node.
+
+    ``apply`` corrects nodal velocities like a boundary condition; the walls' corrections are
+    computed from the same velocities and added.
+    """
+
+    def __init__(self, nodes: np.ndarray, normal: np.ndarray, members: list[tuple[np.ndarray, float]]):
+        self.nodes, self.normal, self.members = nodes, normal, members
+
+    def apply(self, v: np.ndarray) -> None:
+        """Correct the nodal velocities ``v`` (``shape=(num_nodes, gdim)``) in place."""
+        vi = v[self.nodes]
+        dv = np.zeros_like(vi)
+        for alpha, mu in self.members:
+            dv += alpha[:, None] * (coulomb(vi, self.normal, mu) - vi)
+        v[self.nodes] = vi + dv
+
+
+def contacts(
+    conditions: list, grid: Grid, x: np.ndarray, m: np.ndarray, basis: Basis, mass: np.ndarray
+) -> list:
+    """The step's boundary conditions: nodal ones as they are, rigid walls as :class:`Contact` s.
+
+    Args:
+        conditions: nodal boundary conditions and :class:`RigidWall` s, in the order to apply.
+        x: particle positions [m], ``shape=(n, 3)``, at the start of the step.
+        m: particle masses [kg], ``shape=(n,)``.
+        basis: the P1 basis at ``x``.
+        mass: the assembled lumped mass [kg], ``shape=(num_nodes,)``.
+
+    """
+    out, lines = [], {}  # a line's first wall's place in out -> its walls
+    for bc in conditions:
+        if not isinstance(bc, RigidWall):
+            out.append(bc)
+            continue
+        for k, walls in lines.items():
+            w = walls[0]
+            if (
+                np.allclose(w.normal, bc.normal, rtol=0, atol=1e-12)
+                and abs(w.distance(bc.segment[:1])[0]) <= ON_LINE * grid.h_min
+            ):
+                walls.append(bc)
+                break
+        else:
+            lines[len(out)] = [bc]
+            out.append(None)
+    if not lines:
+        return out
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv_mass = np.where(mass > 0.0, 1.0 / mass, 0.0)
+    for k, walls in lines.items():
+        w0 = walls[0]
+        behind = np.flatnonzero((w0.distance(grid.node_x) <= ON_LINE * grid.h_min) & (mass > 0.0))
+        members = []
+        for w in walls:
+            share = grid.assemble(grid.scratch, scatter(basis, np.where(w.over(x), m, 0.0)))
+            members.append((share[behind] * inv_mass[behind], w.mu))
+        touched = np.logical_or.reduce([alpha > 0.0 for alpha, _ in members])
+        out[k] = Contact(behind[touched], w0.normal, [(alpha[touched], mu) for alpha, mu in members])
+    return out
+
+
+def stop_at_walls(walls: list, x: np.ndarray, dx: np.ndarray, v: np.ndarray) -> int:
+    """Stop on the wall each particle whose move ``dx`` would cross one; return how many.
+
+    ``x`` (``(n, 3)``), ``dx`` and ``v`` (``(n, gdim)``) are the positions, the moves and the
+    velocities [m/s]; ``dx`` loses the part beyond the wall, ``v`` its component into the wall.
+    """
+    stopped = 0
+    for w in walls:
+        if not isinstance(w, RigidWall):
+            continue
+        phi0 = w.distance(x)
+        phi1 = phi0 - dx[:, 0] * w.normal[0] - dx[:, 1] * w.normal[1]
+        idx = np.flatnonzero((phi1 < 0.0) & (phi0 >= 0.0))
+        if not idx.size:
+            continue
+        crossing = x[idx, :2] + (phi0[idx] / (phi0[idx] - phi1[idx]))[:, None] * dx[idx, :2]
+        idx = idx[w.over(crossing)]
+        dx[idx, :2] += phi1[idx, None] * w.normal
+        vn = v[idx, :2] @ w.normal
+        v[idx, :2] -= np.maximum(vn, 0.0)[:, None] * w.normal
+        stopped += idx.size
+    return stopped
