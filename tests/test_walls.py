@@ -1,0 +1,162 @@
+"""Rigid walls as geometry: where they act, their friction, their impenetrability, bad input."""
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import rectangle
+
+import dolfin_mpm as dm
+from dolfin_mpm.core.locate import basis_at, locate
+from dolfin_mpm.core.transfer import scatter
+from dolfin_mpm.core.walls import contacts, stop_at_walls
+
+G = 9.81
+
+
+@pytest.mark.parametrize(
+    "segment, mu, match",
+    [
+        ([(0.0, 0.0), (0.0, 0.0)], 0.0, r"^floor: segment is degenerate"),
+        ([(0.0, 0.0), (np.nan, 1.0)], 0.0, r"^floor: segment must be two points of 2 finite"),
+        ([(0.0, 0.0, 0.0), (1.0, 0.0, 0.0)], 0.0, r"^floor: segment must be two points of 2"),
+        ([(0.0, 0.0), (1.0, 0.0)], -0.1, r"^floor: mu must be in \[0, inf\), got -0.1"),
+        ([(0.0, 0.0), (1.0, 0.0)], np.nan, r"^floor: mu must be in \[0, inf\), got nan"),
+    ],
+)
+def test_bad_wall_is_named(segment, mu, match):
+    with pytest.raises(ValueError, match=match):
+        dm.RigidWall(segment, mu, "floor")
+
+
+def test_wall_outside_the_mesh_or_with_material_behind_it_is_refused():
+    grid = dm.Grid(rectangle((0, 0), (1, 1), (4, 4)))
+    mat = dm.LinearElastic(E=1e4, nu=0.3, rho=1000.0)
+    P = dm.seed(grid, mat, ppc=1, where=lambda x: x[1] < 0.5)
+    with pytest.raises(ValueError, match=r"^floor: segment point \[1.5, 0.0\] lies outside the mesh"):
+        dm.Solver(grid, P, mat, bcs=[dm.RigidWall([(0.0, 0.0), (1.5, 0.0)], name="floor")])
+    # Walked the wrong way, the floor has the material behind it.
+    with pytest.raises(ValueError, match=r"^floor: \d+ particles start behind the wall .* on the left of"):
+        dm.Solver(grid, P, mat, bcs=[dm.RigidWall([(1.0, 0.0), (0.0, 0.0)], name="floor")])
+
+
+@pytest.mark.parametrize(
+    "x_e, diagonal", [(0.5, "right"), (0.53, "right"), (0.5, "crossed"), (0.515, "crossed")]
+)
+def test_a_plate_carries_the_weight_over_it_wherever_its_edge_falls(x_e, diagonal):
+    """An elastic layer at rest on two plates that meet at x_e, on a node or between nodes.
+
+    Each plate carries the weight of the material over it, to within the particles' spacing:
+    the wall ends where its geometry ends (a wall of nodes would end at the nodes, up to h/2 off).
+    """
+    h, thickness = 0.05, 0.1
+    grid = dm.Grid(rectangle((0, -0.1), (1, 0.2), (20, 6), diagonal))
+    mat = dm.LinearElastic(E=1e6, nu=0.3, rho=1000.0)
+    P = dm.seed(grid, mat, ppc=4, where=lambda x: (x[1] > 0) & (x[1] < thickness))
+    P.sigma = dm.geostatic_stress(P.x, mat.rho, G, thickness, 0.3 / 0.7)
+    left, right = (
+        dm.RigidWall([(0, 0), (x_e, 0)], name="left"),
+        dm.RigidWall([(x_e, 0), (1, 0)], name="right"),
+    )
+    sides = dm.SlipBC(
+        grid.nodes_where(lambda x: np.isclose(x[0], 0.0) | np.isclose(x[0], 1.0)), normal=(1, 0)
+    )
+    solver = dm.Solver(grid, P, mat, bcs=[left, right, sides], gravity=(0, -G), damping=0.3)
+    solver.run(0.1, progress=False)
+
+    cells, N = locate(grid, P.x, P.cell)
+    basis = basis_at(grid, cells, N)
+    mass = grid.assemble(grid.mass, scatter(basis, P.mass)).copy()
+    (line,) = contacts([left, right], grid, P.x, P.mass, basis, mass)  # the plates share a line
+    f_contact = grid.f_contact.x.array.reshape(-1, 2)[line.nodes]
+    owned = line.nodes < grid.num_owned_nodes
+    (alpha_left, _), (alpha_right, _) = line.members
+    carried = [solver.comm.allreduce((a[owned] @ f_contact[owned])[1]) for a in (alpha_left, alpha_right)]
+    weight = solver.total_mass() * G
+    assert sum(carried) == pytest.approx(weight, rel=1e-3)  # at rest: the plates carry it all
+    spacing = h / 3  # of the particles' columns: 4 per triangle
+    assert abs(carried[0] / weight - x_e) < spacing
+    assert abs(carried[1] / weight - (1 - x_e)) < spacing
+
+
+@pytest.mark.parametrize("diagonal", ["right", "crossed"])
+def test_block_sliding_down_an_inclined_wall_decelerates_at_g_sin_minus_mu_cos(diagonal):
+    """A wall at 17 degrees on a structured mesh: no mesh line follows it."""
+    theta, mu = np.radians(17.0), 0.5
+    grid = dm.Grid(rectangle((0, 0), (1.0, 0.6), (40, 24), diagonal))
+    a = np.array([0.0, 0.45])
+    down, up = np.array([np.cos(theta), -np.sin(theta)]), np.array([np.sin(theta), np.cos(theta)])
+    slope = dm.RigidWall([a, a + down / np.cos(theta)], mu=mu, name="slope")
+    mat = dm.LinearElastic(E=1e6, nu=0.3, rho=1000.0)
+    thickness = 0.08
+
+    def local(x):  # along and across the slope, x.shape=(3, n)
+        d = x[:2].T - a
+        return d @ down, d @ up
+
+    def block(x):
+        s, t = local(x)
+        return (s > 0.1) & (s < 0.35) & (t > 0) & (t < thickness)
+
+    P = dm.seed(grid, mat, ppc=4, where=block, velocity=tuple(down))  # 1 m/s down the slope
+    t = local(P.x.T)[1]
+    P.sigma[:, :2, :2] = (-mat.rho * G * np.cos(theta) * (thickness - t))[:, None, None] * np.outer(up, up)
+    solver = dm.Solver(grid, P, mat, bcs=[slope], gravity=(0, -G), transfer="APIC")
+    m = solver.total_mass()
+    times, speeds = [], []
+    while solver.time < 0.2:
+        solver.step()
+        times.append(solver.time)
+        speeds.append(solver.total_momentum() @ down / m)
+    times, speeds = np.array(times), np.array(speeds)
+    late = times > 0.02  # after the first contact waves
+    deceleration = np.polyfit(times[late], speeds[late], 1)[0]
+    assert deceleration == pytest.approx(G * (np.sin(theta) - mu * np.cos(theta)), rel=0.01)
+    assert solver.comm.allreduce(solver.state.wall_stops) == 0  # the grid alone held the block
+
+
+def test_a_move_across_a_wall_stops_on_it_and_a_move_past_its_end_does_not():
+    wall = dm.RigidWall([(0.0, 0.0), (1.0, 0.0)], name="floor")
+    x = np.array([[0.5, 0.01, 0.0], [1.2, 0.01, 0.0], [0.5, 0.5, 0.0]])
+    dx = np.array([[0.1, -0.03], [0.0, -0.03], [0.0, -0.03]])
+    v = np.array([[1.0, -3.0], [0.0, -3.0], [0.0, -3.0]])
+    assert stop_at_walls([wall], x, dx, v) == 1
+    assert np.allclose(dx[0], [0.1, -0.01]) and np.allclose(v[0], [1.0, 0.0])  # on the wall, sliding
+    assert np.array_equal(dx[1:], [[0.0, -0.03], [0.0, -0.03]]) and np.array_equal(v[1:], [[0, -3], [0, -3]])
+
+
+def test_no_particle_crosses_a_wall_of_the_silo():
+    """The local silo at h = 10 mm to t = 0.25 s: no particle's move in any step crosses a wall."""
+    spec = importlib.util.spec_from_file_location(
+        "demo_silo", Path(__file__).parents[1] / "demos" / "demo_silo.py"
+    )
+    demo = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(demo)
+    solver, gate = demo.build(h=0.01, radius=0.0)
+    solver.time = -20 * solver.dt
+    solver.run(0.0, progress=False)
+    solver.bcs = [bc for bc in solver.bcs if bc is not gate]
+    walls, crossings = solver.bcs, []
+
+    class Moves:  # each step's moves, from the positions of the particles by id
+        last = np.full((solver.num_particles(), 2), np.nan)
+
+        def write(self, s):
+            P = s.particles
+            before = self.last[P.id]
+            known = ~np.isnan(before[:, 0])
+            x0, x1 = before[known], P.x[known, :2]
+            count = 0
+            for w in walls:
+                phi0, phi1 = w.distance(x0), w.distance(x1)
+                cross = (phi0 >= 0.0) & (phi1 < 0.0)
+                at = x0[cross] + (phi0[cross] / (phi0[cross] - phi1[cross]))[:, None] * (x1 - x0)[cross]
+                count += int(np.sum(w.over(at)))
+            crossings.append(count)
+            self.last[:] = np.nan
+            self.last[P.id] = P.x[:, :2]
+
+    solver.run(0.25, output=Moves(), output_interval=solver.dt, progress=False)
+    assert len(crossings) > 2000 and solver.comm.allreduce(sum(crossings)) == 0
+    assert solver.sinks["discharged"].mass > 10.0  # it flowed
