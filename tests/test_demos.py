@@ -77,3 +77,29 @@ def test_silo_quick_discharge(tmp_path):
 def test_silo_bad_input(sizes, match):
     with pytest.raises(ValueError, match=match):
         load("demo_silo").build(**sizes)
+
+
+def test_hopper_quick_discharge():
+    """Inclined walls on an unstructured mesh: the hopper settles, opens and discharges."""
+    demo = load("demo_hopper")
+    r = demo.run(h=0.02, t_end=0.1, t_settle=0.01, progress=False)
+    assert r["mass_error"] < 1e-12
+    assert r["discharged"] > 1.0 and r["flow_rate"] > 0.0
+    solver, _ = demo.build(h=0.02)
+    x = solver.grid.mesh.geometry.x[:, :2]
+    for wall in solver.bcs[:2]:  # the inclined walls: no mesh vertex lies on them
+        near = wall.over(x) & (np.abs(wall.distance(x)) < 1e-3 * 0.02)
+        assert not near.any()
+
+
+@pytest.mark.parametrize(
+    "sizes, match",
+    [
+        (dict(h=0.03), "cannot resolve the outlet"),
+        (dict(beta=75.0), "beta must be in"),
+        (dict(D=-0.1), "D must be a positive length"),
+    ],
+)
+def test_hopper_bad_input(sizes, match):
+    with pytest.raises(ValueError, match=match):
+        load("demo_hopper").build(**sizes)

@@ -160,3 +160,70 @@ def test_no_particle_crosses_a_wall_of_the_silo():
     solver.run(0.25, output=Moves(), output_interval=solver.dt, progress=False)
     assert len(crossings) > 2000 and solver.comm.allreduce(sum(crossings)) == 0
     assert solver.sinks["discharged"].mass > 10.0  # it flowed
+
+
+# -- scenario files ------------------------------------------------------------------------------
+SILO = Path(__file__).parents[1] / "demos" / "silo.toml"
+
+
+@pytest.mark.parametrize(
+    "override, match",
+    [
+        (
+            "walls.bottom_left.segment=[[0.0, 0.0], [0.0, 0.0]]",
+            r"walls.bottom_left.segment: segment is degenerate",
+        ),
+        ("walls.bottom_left.segment=[[0.0, 0.0]]", r"walls.bottom_left.segment: must be two points"),
+        (
+            "walls.bottom_left.segment=[[0.0, 0.0], [0.05, nan]]",
+            r"walls.bottom_left.segment: segment must be",
+        ),
+        (
+            "walls.gate.type='velocity'",
+            r"walls.gate.type: a wall given as a segment is 'slip' or 'frictional'",
+        ),
+        ("walls.gate.normal=[0.0, 1.0]", r"walls.gate.normal: unknown key"),
+        ("walls.gate.friction_angle=90.0", r"walls.gate.friction_angle: must be in \[0, 90\) degrees"),
+    ],
+)
+def test_scenario_rigid_wall_errors_name_their_path(override, match):
+    from dolfin_mpm.app import scenario
+
+    with pytest.raises(scenario.ScenarioError, match=match):
+        scenario.load(SILO, [override])
+
+
+@pytest.mark.parametrize(
+    "override, match",
+    [
+        (
+            "walls.left.segment=[[0.0, 0.5], [0.0, 0.0]]",
+            r"walls.left.segment: segment point \[0.0, 0.5\] lies outside",
+        ),
+        (
+            "walls.bottom_left.segment=[[0.05, 0.0], [0.0, 0.0]]",
+            r"walls.bottom_left.segment: \d+ particles start behind",
+        ),
+    ],
+)
+def test_scenario_rigid_wall_errors_the_mesh_reveals_name_their_path(override, match):
+    from dolfin_mpm.app import scenario
+
+    with pytest.raises(scenario.ScenarioError, match=match):
+        scenario.build(scenario.load(SILO, [override]))
+
+
+def test_scenario_polygon_wall_is_a_chain_of_segments(tmp_path):
+    from dolfin_mpm.app import scenario
+
+    text = SILO.read_text()
+    start, end = text.index("[walls.left]"), text.index("[walls.bottom_right]")
+    polygon = '[walls.left]\ntype = "frictional"\npolygon = [[0.0, 0.31], [0.0, 0.0], [0.05, 0.0]]\n'
+    (tmp_path / "s.toml").write_text(text[:start] + polygon + "friction_angle = 20.0\n\n" + text[end:])
+    sim = scenario.build(scenario.load(tmp_path / "s.toml"))
+    left = sim.walls["left"]
+    assert [w.name for w in left] == ["walls.left.polygon"] * 2
+    assert np.array_equal(left[1].segment, [[0.0, 0.0], [0.05, 0.0]]) and left[1].mu == pytest.approx(
+        np.tan(np.radians(20))
+    )
+    assert sum(isinstance(bc, dm.RigidWall) for bc in sim.solver.bcs) == 5

@@ -34,6 +34,8 @@ __all__ = ["Contact", "RigidWall", "contacts", "stop_at_walls"]
 
 #: Nodes within this fraction of the smallest cell height in front of a wall's line count as on it.
 ON_LINE = 1e-6
+#: A particle stopped on a wall may end this fraction of the wall's length behind it (round-off).
+ROUNDOFF = 1e-12
 
 
 @dataclass
@@ -185,7 +187,7 @@ def stop_at_walls(walls: list, x: np.ndarray, dx: np.ndarray, v: np.ndarray) -> 
             continue
         phi0 = w.distance(x)
         phi1 = phi0 - dx[:, 0] * w.normal[0] - dx[:, 1] * w.normal[1]
-        idx = np.flatnonzero((phi1 < 0.0) & (phi0 >= 0.0))
+        idx = np.flatnonzero((phi1 < 0.0) & (phi0 >= -ROUNDOFF * w.length))  # those stopped before too
         if not idx.size:
             continue
         crossing = x[idx, :2] + (phi0[idx] / (phi0[idx] - phi1[idx]))[:, None] * dx[idx, :2]
