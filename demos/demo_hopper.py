@@ -165,9 +165,8 @@ def main():
     # is its mesh error (the number to quote with it).
     if len(results) > 1:
         a, b = results[-2], results[-1]
-        print(
-            f"mesh study: flow rate {b['flow_rate']:.1f} kg/s/m, change {b['flow_rate'] / a['flow_rate'] - 1:+.3f}"
-        )
+        change = b["flow_rate"] / a["flow_rate"] - 1
+        print(f"mesh study: flow rate {b['flow_rate']:.1f} kg/s/m, change {change:+.3f}")
 
 
 if __name__ == "__main__":
