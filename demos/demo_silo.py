@@ -223,6 +223,7 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, heig
         "radius": radius,
         "weight": weight,
         "wall_friction": wall_friction,
+        "shift": shift,
         "t": t,
         "discharged": mass,
         "flow_rate": flow_rate(t, mass),
@@ -244,6 +245,31 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, heig
         "max_iterations": fp["max_iterations"],
         "unconverged": fp["unconverged"],
         "wall_stops": comm.allreduce(solver.state.wall_stops),
+        **stagnant_zones(solver, width, outlet, h),
+    }
+
+
+def stagnant_zones(solver, width=0.2, outlet=0.1, h=0.01) -> dict:
+    """What the bottom friction holds at rest, from the particles now (all ranks).
+
+    ``corner_speed``: median speed [m/s] in the bottom corners (3 cm squares), where a frictional
+    bottom holds stagnant zones; ``base_slip``: median horizontal speed [m/s] of the layer one
+    cell deep over the bottom plates; ``outlet_angle``: mean angle [degrees] from the vertical of
+    the velocity of the material crossing the outlet plane (within one cell of it).
+    """
+    P, comm = solver.particles, solver.comm
+    x, v = P.x[:, :2], P.v
+    gather = lambda a: np.concatenate(comm.allgather(a))  # noqa: E731
+    plates = (x[:, 0] < 0.5 * (width - outlet)) | (x[:, 0] > 0.5 * (width + outlet))
+    corner = (x[:, 1] > 0.0) & (x[:, 1] < 0.03) & ((x[:, 0] < 0.03) | (x[:, 0] > width - 0.03))
+    base = (x[:, 1] > 0.0) & (x[:, 1] < h) & plates
+    crossing = (np.abs(x[:, 1]) < h) & ~plates
+    angle = np.degrees(np.arctan2(np.abs(v[crossing, 0]), np.maximum(-v[crossing, 1], 1e-12)))
+    median = lambda a: float(np.median(a)) if a.size else float("nan")  # noqa: E731
+    return {
+        "corner_speed": median(gather(np.hypot(v[corner, 0], v[corner, 1]))),
+        "base_slip": median(gather(np.abs(v[base, 0]))),
+        "outlet_angle": float(np.mean(gather(angle))) if comm.allreduce(angle.size) else float("nan"),
     }
 
 
@@ -296,6 +322,7 @@ STUDIES = {
     "radius": [dict(h=H_STUDY, radius=r) for r in (0.0, 2.5e-3, 5e-3, 10e-3)],
     "weights": [dict(h=H_STUDY, radius=5e-3, weight=w) for w in ("cubic", "constant", "gaussian")],
     "friction": [dict(h=0.01, wall_friction=a) for a in (0.0, 10.0, 20.0, 30.0)],
+    "shift": [dict(h=h, radius=0.0, shift=s) for h in (0.01, 0.005) for s in (0.0, 0.5)],
 }
 ARRAYS = ("t", "discharged", "x", "e_vp_bar", "profile_x", "profile_e_vp_bar", "profile_v_y")
 
@@ -421,6 +448,43 @@ def plot_profiles(results, path: Path) -> None:
         axes[1].legend(fontsize=7)
 
 
+def mesh_fit(runs, label) -> list[str]:
+    """Lines of Markdown: ``Q = A (D - c h)^(3/2)`` fitted to the runs of three or more meshes.
+
+    ``c`` is the width the outlet loses per cell; ``Q(h -> 0) = A D^(3/2)`` is the extrapolation.
+    """
+    if len(runs) < 3:
+        return []
+    h, Q = np.array([r["h"] for r in runs]), np.array([r["flow_rate"] for r in runs])
+    slope, intercept = np.polyfit(h, Q ** (2 / 3), 1)  # Q^(2/3) = A^(2/3) (D - c h)
+    c, Q0 = -slope * 0.1 / intercept, intercept**1.5
+    misfit = np.max(np.abs((intercept + slope * h) ** 1.5 / Q - 1))
+    return [
+        f"- {label}: fit Q = A (D - c h)^(3/2) over h = "
+        + " / ".join(f"{1e3 * x:g}" for x in h)
+        + f" mm: c = {c:.2f}, Q(h -> 0) = {Q0:.1f} kg/s/m (largest misfit {100 * misfit:.1f} %); "
+        f"Q(5 mm) / Q(10 mm) - 1 = {_ratio(runs, 0.005, 0.01):+.3f}"
+    ]
+
+
+def _ratio(runs, h_fine, h_coarse) -> float:
+    q = {round(1e4 * r["h"]): r["flow_rate"] for r in runs}
+    return q.get(round(1e4 * h_fine), np.nan) / q.get(round(1e4 * h_coarse), np.nan) - 1
+
+
+def shift_lines(runs) -> list[str]:
+    """Lines of Markdown: the flow rate of each mesh with and without the half-cell shift."""
+    q = {(round(1e4 * r["h"]), r.get("shift", 0.0)): r["flow_rate"] for r in runs}
+    out = []
+    for h in sorted({k[0] for k in q}, reverse=True):
+        if (h, 0.0) in q and (h, 0.5) in q:
+            out.append(
+                f"- h = {h / 10:g} mm: {q[h, 0.0]:.1f} kg/s/m with the outlet edges and side walls on "
+                f"nodes, {q[h, 0.5]:.1f} kg/s/m shifted by half a cell ({q[h, 0.5] / q[h, 0.0] - 1:+.3f})"
+            )
+    return out
+
+
 def ranks(r) -> str:
     """`` on N ranks`` for a run on N > 1 MPI ranks, else nothing."""
     n = r.get("ranks", 1)
@@ -517,6 +581,25 @@ def report(folder: Path, path: Path) -> str:
                 "![profiles](images/silo_profiles.png)",
                 "",
             ]
+            out += [*mesh_fit(local, "local"), *mesh_fit(nonlocal_, "non-local"), ""]
+        if name == "shift":
+            out += [*shift_lines(runs), ""]
+        if name == "friction":
+            out += [
+                "| wall friction [°] | flow rate [kg/s/m] | corner speed [m/s] | base slip [m/s] "
+                "| outlet angle [°] |",
+                "|---|---|---|---|---|",
+                *(
+                    f"| {r['wall_friction']:g} | {r['flow_rate']:.1f} | {r['corner_speed']:.4f} "
+                    f"| {r['base_slip']:.4f} | {r['outlet_angle']:.1f} |"
+                    for r in runs
+                ),
+                "",
+                "corner speed: median speed in the bottom corners (3 cm squares) at t = 0.25 s; base "
+                "slip: median horizontal speed of the layer one cell deep over the plates; outlet "
+                "angle: mean angle from the vertical of the velocity crossing the outlet plane.",
+                "",
+            ]
         if name == "radius":
             plot_radius(runs, images / "silo_radius.png")
             out += ["![flow rate against r](images/silo_radius.png)", ""]
@@ -532,11 +615,22 @@ def main():
     parser.add_argument("--radius", type=float, default=5e-3, help="non-local radius r [m]")
     parser.add_argument("--weight", default="cubic", choices=["cubic", "constant", "gaussian"])
     parser.add_argument("--wall-friction", type=float, default=20.0, help="wall friction angle [deg]")
+    parser.add_argument(
+        "--shift", type=float, default=0.0, help="mesh shifted sideways by this part of a cell"
+    )
     parser.add_argument("--output", type=Path, default=Path("results/silo"))
     parser.add_argument("--report", type=Path, help="write the Markdown report of the stored studies here")
     args = parser.parse_args()
     if args.study is None and args.report is None:
-        todo = [dict(h=args.h, radius=args.radius, weight=args.weight, wall_friction=args.wall_friction)]
+        todo = [
+            dict(
+                h=args.h,
+                radius=args.radius,
+                weight=args.weight,
+                wall_friction=args.wall_friction,
+                shift=args.shift,
+            )
+        ]
     elif args.study is None:
         todo = []  # the report of what is stored
     else:
