@@ -90,8 +90,9 @@ class RigidWall:
         if grid.gdim != 2:
             raise ValueError(f"{self.name}: rigid walls are segments in 2D, the grid is {grid.gdim}D")
         comm = grid.comm
-        lo = comm.allreduce(grid.node_x[:, :2].min(axis=0), op=MPI.MIN)
-        hi = comm.allreduce(grid.node_x[:, :2].max(axis=0), op=MPI.MAX)
+        lo, hi = np.empty(2), np.empty(2)
+        comm.Allreduce(grid.node_x[:, :2].min(axis=0), lo, op=MPI.MIN)
+        comm.Allreduce(grid.node_x[:, :2].max(axis=0), hi, op=MPI.MAX)
         slack = 1e-9 * float(np.max(hi - lo))
         outside = ((self.segment < lo - slack) | (self.segment > hi + slack)).any(axis=1)
         if outside.any():
