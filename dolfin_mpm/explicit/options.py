@@ -31,8 +31,9 @@ class Options:
             (affine PIC, Jiang et al. 2015: the particles carry the grid velocity and its gradient,
             and P2G maps the affine field back; no FLIP noise, no PIC damping of shear and spin).
         volumetric: ``"cell"`` (each particle's own velocity gradient) or ``"nodal"`` (its
-            volumetric part averaged over the nodes' patches: no volumetric locking of isochoric
-            flow on linear simplices, see :mod:`dolfin_mpm.core.volumetric`).
+            volumetric part averaged over the nodes' patches, against volumetric locking, see
+            :mod:`dolfin_mpm.core.volumetric`; experimental: not yet verified, see
+            ``docs/numerics.md``).
         flip: FLIP fraction of the particle velocity update, in [0, 1] (1 = pure FLIP); FLIP only.
         damping: local non-viscous (Cundall) damping factor, in [0, 1).
         courant: Courant factor of the automatic time step, in (0, 1].
