@@ -32,8 +32,9 @@ def test_footing_on_cohesive_soil_reaches_prandtl():
     assert abs(r["plateau"]) < 0.01  # the curve has levelled off: a collapse load
 
 
-def test_footing_mpm_on_cohesive_soil_reaches_prandtl():
-    r = load("demo_footing").run_mpm("cohesive", h=0.1, ppc=1, progress=False)
+@pytest.mark.parametrize("footing", ["nodes", "walls"])
+def test_footing_mpm_on_cohesive_soil_reaches_prandtl(footing):
+    r = load("demo_footing").run_mpm("cohesive", h=0.1, ppc=1, progress=False, footing=footing)
     assert abs(r["error"]) < 0.10  # the 10 % for the MPM
     assert r["plateau_spread"] < 0.05
 

@@ -38,21 +38,25 @@ ON_LINE = 1e-6
 ROUNDOFF = 1e-12
 
 
-@dataclass
+@dataclass(eq=False)  # a wall is itself: compared and hashed by identity
 class RigidWall:
-    """A fixed rigid wall: a segment in 2D with Coulomb friction.
+    """A rigid wall: a segment in 2D with Coulomb friction, at rest or in uniform translation.
 
     Args:
-        segment: end points ``[[x0, y0], [x1, y1]]`` [m], the material on the left going
-            from the first to the second.
-        mu: friction coefficient, >= 0 (``tan`` of the wall friction angle).
+        segment: end points ``[[x0, y0], [x1, y1]]`` [m] at t = 0, the material on the left
+            going from the first to the second.
+        mu: friction coefficient, >= 0 (``tan`` of the wall friction angle; ``inf``: rough,
+            no slip while in contact).
         name: what errors call it.
+        velocity: the wall's velocity [m/s], ``shape=(2,)``: at time t its ends are
+            ``segment + velocity * t``.
 
     """
 
     segment: np.ndarray
     mu: float = 0.0
     name: str = "wall"
+    velocity: tuple = (0.0, 0.0)
 
     def __post_init__(self):
         s = np.asarray(self.segment, dtype=np.float64)
@@ -65,27 +69,40 @@ class RigidWall:
         length = float(np.hypot(*d))
         if not length > 1e-12 * max(1.0, float(np.abs(s).max())):
             raise ValueError(f"{self.name}: segment is degenerate (its ends coincide), got {s.tolist()}")
-        check_range(f"{self.name}: mu", self.mu, 0.0, np.inf, closed=(True, False))
-        self.segment, self.length = s, length
+        check_range(f"{self.name}: mu", self.mu, 0.0, np.inf, closed=(True, True))
+        v = np.asarray(self.velocity, dtype=np.float64)
+        if v.shape != (2,) or not np.all(np.isfinite(v)):
+            raise ValueError(f"{self.name}: velocity must be 2 finite numbers [m/s], got {self.velocity!r}")
+        self.segment, self.length, self.velocity = s, length, v
         self.tangent = d / length
         self.normal = np.array([self.tangent[1], -self.tangent[0]])  # right of a -> b: into the wall
 
-    def distance(self, x: np.ndarray) -> np.ndarray:
-        """Signed distance [m] of points ``x`` (``(n, >=2)``) from the line, > 0 on the material's side."""
-        a, n = self.segment[0], self.normal
+    def start(self, time: float = 0.0) -> np.ndarray:
+        """The first end point [m] at ``time`` [s], ``shape=(2,)``."""
+        return self.segment[0] + self.velocity * time
+
+    def distance(self, x: np.ndarray, time: float = 0.0) -> np.ndarray:
+        """Signed distance [m] of points ``x`` (``(n, >=2)``) from the line at ``time`` [s].
+
+        Positive on the material's side.
+        """
+        a, n = self.start(time), self.normal
         return (a[0] - x[:, 0]) * n[0] + (a[1] - x[:, 1]) * n[1]
 
-    def over(self, x: np.ndarray) -> np.ndarray:
-        """Whether the foot point of each of ``x`` (``(n, >=2)``) on the line lies on the segment."""
-        a, t = self.segment[0], self.tangent
+    def over(self, x: np.ndarray, time: float = 0.0) -> np.ndarray:
+        """Whether the foot point of each of ``x`` (``(n, >=2)``) on the line lies on the segment.
+
+        The wall as it is at ``time`` [s].
+        """
+        a, t = self.start(time), self.tangent
         s = (x[:, 0] - a[0]) * t[0] + (x[:, 1] - a[1]) * t[1]
         return (s >= 0.0) & (s <= self.length)
 
-    def check(self, grid: Grid, particles) -> None:
+    def check(self, grid: Grid, particles, time: float = 0.0) -> None:
         """Raise ``ValueError`` for a wall not in 2D, outside the mesh, or with particles behind it.
 
-        ``particles`` (:class:`~dolfin_mpm.core.particles.Particles`): the material must start
-        on the wall's left; collective over the grid's ranks.
+        ``particles`` (:class:`~dolfin_mpm.core.particles.Particles`): the material must lie on
+        the wall's left at ``time`` [s]; collective over the grid's ranks.
         """
         if grid.gdim != 2:
             raise ValueError(f"{self.name}: rigid walls are segments in 2D, the grid is {grid.gdim}D")
@@ -94,14 +111,15 @@ class RigidWall:
         comm.Allreduce(grid.node_x[:, :2].min(axis=0), lo, op=MPI.MIN)
         comm.Allreduce(grid.node_x[:, :2].max(axis=0), hi, op=MPI.MAX)
         slack = 1e-9 * float(np.max(hi - lo))
-        outside = ((self.segment < lo - slack) | (self.segment > hi + slack)).any(axis=1)
+        ends = self.segment + self.velocity * time
+        outside = ((ends < lo - slack) | (ends > hi + slack)).any(axis=1)
         if outside.any():
             raise ValueError(
-                f"{self.name}: segment point {self.segment[np.argmax(outside)].tolist()} lies outside the "
+                f"{self.name}: segment point {ends[np.argmax(outside)].tolist()} lies outside the "
                 f"mesh [{lo[0]:g}, {hi[0]:g}] x [{lo[1]:g}, {hi[1]:g}]"
             )
         x = particles.x
-        behind = np.flatnonzero(self.over(x) & (self.distance(x) < -ON_LINE * grid.h_min))
+        behind = np.flatnonzero(self.over(x, time) & (self.distance(x, time) < -ON_LINE * grid.h_min))
         count = comm.allreduce(behind.size, op=MPI.SUM)
         if count:
             first = comm.allgather(x[behind[0], :2].tolist() if behind.size else None)
@@ -116,23 +134,29 @@ class Contact:
     """The walls of one line in one step: nodes and each wall's share ``alpha`` of each node.
 
     ``apply`` corrects nodal velocities like a boundary condition; the walls' corrections are
-    computed from the same velocities and added.
+    computed from the same velocities and added, and each wall's momentum change on this
+    rank's owned nodes is kept in ``impulses`` [N s] (by wall) until the next call.
     """
 
-    def __init__(self, nodes: np.ndarray, normal: np.ndarray, members: list[tuple[np.ndarray, float]]):
+    def __init__(self, nodes: np.ndarray, normal: np.ndarray, members: list, mass: np.ndarray, owned: int):
         self.nodes, self.normal, self.members = nodes, normal, members
+        self.mass = np.where(nodes < owned, mass, 0.0)  # ghosts count on their owners
+        self.impulses: dict = {}
 
     def apply(self, v: np.ndarray) -> None:
         """Correct the nodal velocities ``v`` (``shape=(num_nodes, gdim)``) in place."""
         vi = v[self.nodes]
         dv = np.zeros_like(vi)
-        for alpha, mu in self.members:
-            dv += alpha[:, None] * (coulomb(vi, self.normal, mu) - vi)
+        for wall, alpha in self.members:
+            vw = wall.velocity
+            change = alpha[:, None] * (coulomb(vi - vw, self.normal, wall.mu) + vw - vi)
+            self.impulses[wall] = self.mass @ change
+            dv += change
         v[self.nodes] = vi + dv
 
 
 def contacts(
-    conditions: list, grid: Grid, x: np.ndarray, m: np.ndarray, basis: Basis, mass: np.ndarray
+    conditions: list, grid: Grid, x: np.ndarray, m: np.ndarray, basis: Basis, mass: np.ndarray, time: float
 ) -> list:
     """The step's boundary conditions: nodal ones as they are, rigid walls as :class:`Contact` s.
 
@@ -142,6 +166,7 @@ def contacts(
         m: particle masses [kg], ``shape=(n,)``.
         basis: the P1 basis at ``x``.
         mass: the assembled lumped mass [kg], ``shape=(num_nodes,)``.
+        time: the start of the step [s] (where moving walls are).
 
     """
     out, lines = [], {}  # a line's first wall's place in out -> its walls
@@ -153,7 +178,8 @@ def contacts(
             w = walls[0]
             if (
                 np.allclose(w.normal, bc.normal, rtol=0, atol=1e-12)
-                and abs(w.distance(bc.segment[:1])[0]) <= ON_LINE * grid.h_min
+                and np.array_equal(w.velocity, bc.velocity)
+                and abs(w.distance(bc.start(time)[None], time)[0]) <= ON_LINE * grid.h_min
             ):
                 walls.append(bc)
                 break
@@ -166,35 +192,41 @@ def contacts(
         inv_mass = np.where(mass > 0.0, 1.0 / mass, 0.0)
     for k, walls in lines.items():
         w0 = walls[0]
-        behind = np.flatnonzero((w0.distance(grid.node_x) <= ON_LINE * grid.h_min) & (mass > 0.0))
+        behind = np.flatnonzero((w0.distance(grid.node_x, time) <= ON_LINE * grid.h_min) & (mass > 0.0))
         members = []
         for w in walls:
-            share = grid.assemble(grid.scratch, scatter(basis, np.where(w.over(x), m, 0.0)))
-            members.append((share[behind] * inv_mass[behind], w.mu))
-        touched = np.logical_or.reduce([alpha > 0.0 for alpha, _ in members])
-        out[k] = Contact(behind[touched], w0.normal, [(alpha[touched], mu) for alpha, mu in members])
+            share = grid.assemble(grid.scratch, scatter(basis, np.where(w.over(x, time), m, 0.0)))
+            members.append((w, share[behind] * inv_mass[behind]))
+        touched = np.logical_or.reduce([alpha > 0.0 for _, alpha in members])
+        nodes = behind[touched]
+        members = [(w, alpha[touched]) for w, alpha in members]
+        out[k] = Contact(nodes, w0.normal, members, mass[nodes], grid.num_owned_nodes)
     return out
 
 
-def stop_at_walls(walls: list, x: np.ndarray, dx: np.ndarray, v: np.ndarray) -> int:
+def stop_at_walls(walls: list, x: np.ndarray, dx: np.ndarray, v: np.ndarray, time: float, dt: float) -> int:
     """Stop on the wall each particle whose move ``dx`` would cross one; return how many.
 
     ``x`` (``(n, 3)``), ``dx`` and ``v`` (``(n, gdim)``) are the positions, the moves and the
-    velocities [m/s]; ``dx`` loses the part beyond the wall, ``v`` its component into the wall.
+    velocities [m/s] of the step from ``time`` to ``time + dt`` [s]; ``dx`` loses the part
+    beyond the wall, ``v`` its component into the wall (relative to a moving wall).
     """
     stopped = 0
     for w in walls:
         if not isinstance(w, RigidWall):
             continue
-        phi0 = w.distance(x)
-        phi1 = phi0 - dx[:, 0] * w.normal[0] - dx[:, 1] * w.normal[1]
+        phi0 = w.distance(x, time)
+        wall_move = dt * (w.velocity @ w.normal)  # the wall's own advance along its normal
+        phi1 = phi0 - dx[:, 0] * w.normal[0] - dx[:, 1] * w.normal[1] + wall_move
         idx = np.flatnonzero((phi1 < 0.0) & (phi0 >= -ROUNDOFF * w.length))  # those stopped before too
         if not idx.size:
             continue
-        crossing = x[idx, :2] + (phi0[idx] / (phi0[idx] - phi1[idx]))[:, None] * dx[idx, :2]
-        idx = idx[w.over(crossing)]
+        share = (phi0[idx] / (phi0[idx] - phi1[idx]))[:, None]
+        crossing = x[idx, :2] + share * dx[idx, :2]
+        along = (crossing - w.start(time)) @ w.tangent - (w.velocity @ w.tangent) * dt * share[:, 0]
+        idx = idx[(along >= 0.0) & (along <= w.length)]
         dx[idx, :2] += phi1[idx, None] * w.normal
-        vn = v[idx, :2] @ w.normal
+        vn = (v[idx, :2] - w.velocity) @ w.normal
         v[idx, :2] -= np.maximum(vn, 0.0)[:, None] * w.normal
         stopped += idx.size
     return stopped

@@ -126,7 +126,7 @@ class Solver:
 
     @bcs.setter
     def bcs(self, bcs: Sequence[BoundaryCondition]) -> None:
-        _check_walls(self.grid, self.particles, bcs)
+        _check_walls(self.grid, self.particles, bcs, self.time)
         self.model.bcs = list(bcs)
 
     @property
@@ -208,12 +208,15 @@ class Solver:
     def total_mass(self) -> float:
         return self.comm.allreduce(float(self.particles.mass.sum()), MPI.SUM)
 
-    def reaction(self, nodes: np.ndarray) -> np.ndarray:
+    def reaction(self, nodes) -> np.ndarray:
         """Contact force ``F_c`` [N] (per metre in 2D) of the last step on ``nodes``, all ranks.
 
-        The force the boundary conditions there exert on the material, ``shape=(gdim,)``.
+        The force the boundary conditions there exert on the material, ``shape=(gdim,)``;
+        ``nodes`` may be a :class:`~dolfin_mpm.core.walls.RigidWall` (its force alone).
         """
         gdim = self.grid.gdim
+        if isinstance(nodes, RigidWall):
+            return self.comm.allreduce(self.state.reactions.get(nodes, np.zeros(gdim)), MPI.SUM)
         nodes = np.asarray(nodes)
         owned = nodes[nodes < self.grid.num_owned_nodes]
         f = self.grid.f_contact.x.array.reshape(-1, gdim)[owned].sum(axis=0)
@@ -240,8 +243,8 @@ class Solver:
         return e
 
 
-def _check_walls(grid: Grid, particles: Particles, bcs: Sequence) -> None:
+def _check_walls(grid: Grid, particles: Particles, bcs: Sequence, time: float = 0.0) -> None:
     """Raise ``ValueError`` naming a rigid wall outside the mesh or with particles behind it."""
     for bc in bcs:
         if isinstance(bc, RigidWall):
-            bc.check(grid, particles)
+            bc.check(grid, particles, time)

@@ -36,6 +36,8 @@ class State:
         migrated: particles moved between ranks since the start (a diagnostic, not stored).
         wall_stops: particle moves cut short at a rigid wall since the start (a diagnostic,
             not stored).
+        reactions: the force [N] of each rigid wall on the material in the last step, on this
+            rank's owned nodes, by wall (a step's output, not stored).
 
     """
 
@@ -49,6 +51,7 @@ class State:
     fixed_point: dict[str, int] = field(default_factory=lambda: dict.fromkeys(FIXED_POINT_STATISTICS, 0))
     migrated: int = 0
     wall_stops: int = 0
+    reactions: dict = field(default_factory=dict)
 
     # -- serialisation -------------------------------------------------------------------------
     def scalars(self) -> dict:

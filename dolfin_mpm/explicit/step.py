@@ -24,7 +24,7 @@ as assembly buffers and hold the step's nodal fields for output at its end.
 """
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from mpi4py import MPI
@@ -34,7 +34,7 @@ from dolfin_mpm.core.locate import Basis, basis_at, locate
 from dolfin_mpm.core.particles import Particles
 from dolfin_mpm.core.transfer import gradient, internal_force, interpolate, scatter, volume_ratio
 from dolfin_mpm.core.volumetric import nodal_volumetric
-from dolfin_mpm.core.walls import contacts, stop_at_walls
+from dolfin_mpm.core.walls import Contact, contacts, stop_at_walls
 from dolfin_mpm.explicit.anderson import Anderson
 from dolfin_mpm.explicit.options import Options
 from dolfin_mpm.explicit.state import State
@@ -88,6 +88,8 @@ class Nodal:
         f_int: internal force ``R`` of the start-of-step stresses [N], same shape.
         bcs: the step's boundary conditions: the nodal ones, and each line of rigid walls as
             the :class:`~dolfin_mpm.core.walls.Contact` of the particles over it.
+        reactions: the force [N] of each rigid wall on the material (on this rank's owned
+            nodes), by wall, from the last nodal solve.
 
     """
 
@@ -97,6 +99,7 @@ class Nodal:
     f_ext: np.ndarray
     f_int: np.ndarray
     bcs: list
+    reactions: dict = field(default_factory=dict)
 
     def apply_bcs(self, v: np.ndarray) -> None:
         """Correct nodal velocities ``v`` (``shape=(num_nodes, gdim)``) in place."""
@@ -105,11 +108,11 @@ class Nodal:
 
 
 # -- stages ----------------------------------------------------------------------------------------
-def p2g(model: Model, P: Particles, basis: Basis) -> Nodal:
+def p2g(model: Model, P: Particles, basis: Basis, time: float = 0.0) -> Nodal:
     """Lumped mass, momentum, ``F = m g``, ``R`` and the walls' contacts at the nodes, over ranks.
 
     With APIC the momentum is that of each particle's affine velocity field at the nodes,
-    ``sum_p N_i(x_p) m_p (v_p + C_p (x_i - x_p))``.
+    ``sum_p N_i(x_p) m_p (v_p + C_p (x_i - x_p))``. Moving walls are where they are at ``time`` [s].
     """
     grid = model.grid
     m = grid.assemble(grid.mass, scatter(basis, P.mass))
@@ -121,7 +124,7 @@ def p2g(model: Model, P: Particles, basis: Basis) -> Nodal:
     active = m > model.options.mass_tol * m_max
     inv_m = np.zeros_like(m)
     inv_m[active] = 1.0 / m[active]
-    bcs = contacts(model.bcs, grid, P.x, P.mass, basis, m)
+    bcs = contacts(model.bcs, grid, P.x, P.mass, basis, m, time)
     return Nodal(m, inv_m, momentum, grid.f_ext.x.array, f_int.ravel().copy(), bcs)
 
 
@@ -145,6 +148,7 @@ def nodal_solve(model: Model, nodal: Nodal, R: np.ndarray, dt: float) -> tuple[n
     v_new = v_trial.copy()
     nodal.apply_bcs(v_new)
     f_contact = m * (v_new - v_trial) / dt
+    nodal.reactions = {w: i / dt for c in nodal.bcs if isinstance(c, Contact) for w, i in c.impulses.items()}
     if damping > 0.0:
         f_out = f + f_contact
         v_new = v + dt * (f_out - damping * np.abs(f_out) * np.sign(v)) * inv_m
@@ -275,7 +279,7 @@ def advance(model: Model, state: State, timer: Timer) -> None:
     P.cell = cells
     basis = basis_at(grid, cells, N)
     timer.lap("basis")
-    nodal = p2g(model, P, basis)
+    nodal = p2g(model, P, basis, state.time)
     timer.lap("p2g")
     if average is not None:
         average.update(P.x[:, : grid.gdim], P.volume, P.id)
@@ -331,12 +335,13 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         if options.extrapolation:
             state.R_changes = [R - R_start, *state.R_changes][: options.extrapolation]
         grid.refresh_ghosts(grid.f_int, R)  # the R of the stresses the step ends with
+    state.reactions = nodal.reactions
     P.sigma, P.volume = sigma, volume
     constitutive.record(P, de, de_bar, dt)
     if free_volume is not None:
         P.state["free_volume"] = free_volume
     dx = dt * v_grid
-    state.wall_stops += stop_at_walls(model.bcs, P.x, dx, v)
+    state.wall_stops += stop_at_walls(model.bcs, P.x, dx, v, state.time, dt)
     P.v = v
     if C is not None:
         P.state["affine_velocity"] = C
