@@ -556,8 +556,9 @@ def report(folder: Path, path: Path) -> str:
 
     def row(r):
         w = band_widths(r)
+        shifted = f" (shifted {r['shift']:g} h)" if r.get("shift") else ""
         return (
-            f"| {1e3 * r['h']:g} | {1e3 * r['radius']:g} | {r['weight']} | {r['wall_friction']:g} "
+            f"| {1e3 * r['h']:g}{shifted} | {1e3 * r['radius']:g} | {r['weight']} | {r['wall_friction']:g} "
             f"| {r['flow_rate']:.1f} | {r['e_vp_bar_max']:.1f} "
             f"| {1e3 * w['band']:.1f} | {1e3 * w['edge']:.1f} at {1e3 * w['edge_x']:.0f} "
             f"| {1e3 * w['channel']:.1f} "
