@@ -93,7 +93,7 @@ def test_block_sliding_down_an_inclined_wall_decelerates_at_g_sin_minus_mu_cos(d
     P = dm.seed(grid, mat, ppc=4, where=block, velocity=tuple(down))  # 1 m/s down the slope
     t = local(P.x.T)[1]
     P.sigma[:, :2, :2] = (-mat.rho * G * np.cos(theta) * (thickness - t))[:, None, None] * np.outer(up, up)
-    solver = dm.Solver(grid, P, mat, bcs=[slope], gravity=(0, -G), transfer="APIC")
+    solver = dm.Solver(grid, P, mat, bcs=[slope], gravity=(0, -G), flip=0.0)
     m = solver.total_mass()
     times, speeds = [], []
     while solver.time < 0.2:
@@ -226,7 +226,7 @@ def test_a_rough_moving_wall_carries_the_block_on_it_at_its_speed():
     mat = dm.LinearElastic(E=1e6, nu=0.3, rho=1000.0)
     P = dm.seed(grid, mat, ppc=4, where=lambda x: (x[0] > 0.2) & (x[0] < 0.4) & (x[1] > 0.1) & (x[1] < 0.15))
     floor = dm.RigidWall([(0.0, 0.1), (0.9, 0.1)], np.inf, "belt", velocity=(0.5, 0.0))
-    solver = dm.Solver(grid, P, mat, bcs=[floor], gravity=(0, -G), transfer="APIC")
+    solver = dm.Solver(grid, P, mat, bcs=[floor], gravity=(0, -G), flip=0.0)
     x0 = solver.comm.allreduce(float(P.x[:, 0].sum())) / solver.num_particles()
     solver.run(0.2, progress=False)
     m = solver.total_mass()

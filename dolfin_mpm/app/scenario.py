@@ -32,7 +32,7 @@ from dolfin_mpm.core.grid import Grid
 from dolfin_mpm.core.particles import Sink
 from dolfin_mpm.core.seeding import geostatic_stress, reference_points, seed
 from dolfin_mpm.core.walls import RigidWall
-from dolfin_mpm.explicit.options import INTEGERS, SCHEMES, TRANSFERS, VOLUMETRIC, Options
+from dolfin_mpm.explicit.options import INTEGERS, SCHEMES, VOLUMETRIC, Options
 from dolfin_mpm.explicit.solver import Solver
 from dolfin_mpm.materials import DruckerPragerViscoplastic, LinearElastic
 from dolfin_mpm.parallel import partition
@@ -69,7 +69,6 @@ _DIAGONALS = ("right", "left", "crossed", "right/left", "left/right")
 #: choices), as :class:`~dolfin_mpm.explicit.options.Options` declares them.
 _SOLVER = {
     "scheme": ("string", Options.scheme, SCHEMES),
-    "transfer": ("string", Options.transfer, TRANSFERS),
     "volumetric": ("string", Options.volumetric, VOLUMETRIC),
     **{
         name: ("integer" if name in INTEGERS else "number", p.default, p.range)

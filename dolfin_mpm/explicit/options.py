@@ -6,13 +6,11 @@ import numpy as np
 
 from dolfin_mpm.params import check_fields, parameter
 
-__all__ = ["INTEGERS", "SCHEMES", "TRANSFERS", "VOLUMETRIC", "Options"]
+__all__ = ["INTEGERS", "SCHEMES", "VOLUMETRIC", "Options"]
 
 #: Where the velocities that give the strain rate come from: re-mapped momentum (MUSL) or the
 #: nodal solve (USL).
 SCHEMES = ("MUSL", "USL")
-#: The particle velocity updates: FLIP/PIC blend (``flip``), or affine PIC.
-TRANSFERS = ("FLIP", "APIC")
 #: Where the volumetric strain rate comes from: each particle's cell, or the nodes' patches.
 VOLUMETRIC = ("cell", "nodal")
 
@@ -27,14 +25,11 @@ class Options:
 
     Args:
         scheme: ``"MUSL"`` (velocities re-mapped before the strain rate) or ``"USL"``.
-        transfer: ``"FLIP"`` (particle velocities blend FLIP and PIC by ``flip``) or ``"APIC"``
-            (affine PIC, Jiang et al. 2015: the particles carry the grid velocity and its gradient,
-            and P2G maps the affine field back; no FLIP noise, no PIC damping of shear and spin).
         volumetric: ``"cell"`` (each particle's own velocity gradient) or ``"nodal"`` (its
             volumetric part averaged over the nodes' patches, against volumetric locking, see
             :mod:`dolfin_mpm.core.volumetric`; experimental: not yet verified, see
             ``docs/numerics.md``).
-        flip: FLIP fraction of the particle velocity update, in [0, 1] (1 = pure FLIP); FLIP only.
+        flip: FLIP fraction of the particle velocity update, in [0, 1] (1 = pure FLIP).
         damping: local non-viscous (Cundall) damping factor, in [0, 1).
         courant: Courant factor of the automatic time step, in (0, 1].
         dt: time step [s], > 0; ``None``: ``courant * h_min / max p-wave speed``.
@@ -49,7 +44,6 @@ class Options:
     """
 
     scheme: str = "MUSL"
-    transfer: str = "FLIP"
     volumetric: str = "cell"
     flip: float = parameter(0.0, 1.0, closed=(True, True), default=1.0)
     damping: float = parameter(0.0, 1.0, closed=(True, False), default=0.0)
@@ -66,8 +60,6 @@ class Options:
     def __post_init__(self):
         if self.scheme not in SCHEMES:
             raise ValueError(f"scheme must be 'USL' or 'MUSL', got {self.scheme!r}")
-        if self.transfer not in TRANSFERS:
-            raise ValueError(f"transfer must be 'FLIP' or 'APIC', got {self.transfer!r}")
         if self.volumetric not in VOLUMETRIC:
             raise ValueError(f"volumetric must be 'cell' or 'nodal', got {self.volumetric!r}")
         for name in INTEGERS:

@@ -82,8 +82,6 @@ class Solver:
         ):
             raise ValueError(f"particles.material must index the {len(materials)} materials")
         particles.ensure_state({k: v for m in materials for k, v in m.state_fields().items()})
-        if opts.transfer == "APIC":  # the affine part of each particle's velocity field [1/s]
-            particles.ensure_state({"affine_velocity": (grid.gdim, grid.gdim)})
         ids.number(grid.comm, particles)
         #: The largest stable time step [s]: ``courant * h_min / max p-wave speed``.
         self.critical_dt = (

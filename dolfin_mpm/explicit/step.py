@@ -111,13 +111,11 @@ class Nodal:
 def p2g(model: Model, P: Particles, basis: Basis, time: float = 0.0) -> Nodal:
     """Lumped mass, momentum, ``F = m g``, ``R`` and the walls' contacts at the nodes, over ranks.
 
-    With APIC the momentum is that of each particle's affine velocity field at the nodes,
-    ``sum_p N_i(x_p) m_p (v_p + C_p (x_i - x_p))``. Moving walls are where they are at ``time`` [s].
+    Moving walls are where they are at ``time`` [s].
     """
     grid = model.grid
     m = grid.assemble(grid.mass, scatter(basis, P.mass))
-    C = P.state["affine_velocity"] if model.options.transfer == "APIC" else None
-    momentum = grid.assemble(grid.momentum, _momentum_sums(grid, basis, P, P.v, C))
+    momentum = grid.assemble(grid.momentum, scatter(basis, _momenta(P.mass, P.v)))
     grid.f_ext.x.array[:] = (m[:, None] * model.gravity).ravel()  # from the assembled mass
     f_int = grid.assemble(grid.f_int, internal_force(basis, P.sigma, P.volume))
     m_max = grid.comm.allreduce(m.max() if m.size else 0.0, MPI.MAX)
@@ -162,34 +160,29 @@ def g2p(
     """Particle velocities and velocity gradients from the grid, without moving the particles.
 
     With MUSL the new particle momenta are mapped back to the nodes (through the buffer
-    ``grid.velocity``) and the strain rate comes from those velocities. APIC's particles take
-    the PIC velocity and, as their affine part ``C``, the velocity gradient the strain rate
-    comes from (with MUSL that of the re-mapped velocities: light nodes at the edge of the
-    material stay out of it).
+    ``grid.velocity``) and the strain rate comes from those velocities.
 
     Returns:
-        The new particle velocities (PIC/FLIP blend, or APIC's PIC velocity), ``shape=(n, gdim)``;
-        APIC's affine part, ``L`` (``None`` for FLIP); the grid velocity at the particles that
-        moves them; the velocity gradient ``L``, ``shape=(n, gdim, gdim)``; and the nodal
-        velocity it came from, ``shape=(num_nodes, gdim)``.
+        The new particle velocities (PIC/FLIP blend) and the grid velocity at the particles that
+        moves them, both ``shape=(n, gdim)``; the velocity gradient ``shape=(n, gdim, gdim)``;
+        and the nodal velocity it came from, ``shape=(num_nodes, gdim)``.
 
     """
-    flip, grid, apic = model.options.flip, model.grid, model.options.transfer == "APIC"
+    flip, grid = model.options.flip, model.grid
     v_interp = interpolate(basis, v_node)
-    if apic or flip == 0.0:
-        v = v_interp
-    elif flip == 1.0:
+    if flip == 1.0:
         v = P.v + dt * interpolate(basis, a_node)
-    else:
+    elif flip > 0.0:
         v = flip * (P.v + dt * interpolate(basis, a_node)) + (1.0 - flip) * v_interp
+    else:
+        v = v_interp
     if model.options.scheme == "MUSL":
         v_node = grid.assemble(grid.velocity, scatter(basis, _momenta(P.mass, v))) * nodal.inv_mass[:, None]
         nodal.apply_bcs(v_node)
     L = gradient(basis, v_node)
-    C = (L.copy() if model.options.volumetric == "nodal" else L) if apic else None
     if model.options.volumetric == "nodal":
         L = nodal_volumetric(grid, basis, L, P.volume)
-    return v, C, v_interp, L, v_node
+    return v, v_interp, L, v_node
 
 
 class Constitutive:
@@ -299,7 +292,7 @@ def advance(model: Model, state: State, timer: Timer) -> None:
     for k in range(1, (1 if average is None else options.fixed_point_max_iter) + 1):
         v_node, a_node, f_contact = nodal_solve(model, nodal, R_node, dt)
         timer.lap("nodal_solve")
-        v, C, v_grid, L, v_node = g2p(model, P, basis, nodal, v_node, a_node, dt)
+        v, v_grid, L, v_node = g2p(model, P, basis, nodal, v_node, a_node, dt)
         timer.lap("g2p")
         trials, de = constitutive.increments(P, L, dt)
         timer.lap("return_mapping")
@@ -343,8 +336,6 @@ def advance(model: Model, state: State, timer: Timer) -> None:
     dx = dt * v_grid
     state.wall_stops += stop_at_walls(model.bcs, P.x, dx, v, state.time, dt)
     P.v = v
-    if C is not None:
-        P.state["affine_velocity"] = C
     for c in range(grid.gdim):  # by columns: numpy is slow over short rows
         P.x[:, c] += dx[:, c]
     for f, a in ((grid.velocity, v_node), (grid.acceleration, a_node), (grid.f_contact, f_contact)):
@@ -375,22 +366,6 @@ def _predicted_change(R_changes: list[np.ndarray], order: int) -> np.ndarray:
     """The change of the owned ``R`` in this step, extrapolated from the last steps' changes."""
     dR = R_changes[:order]
     return 2.0 * dR[0] - dR[1] if len(dR) == 2 else dR[0]
-
-
-def _momentum_sums(grid: Grid, basis: Basis, P: Particles, v: np.ndarray, C: np.ndarray | None) -> np.ndarray:
-    """Local nodal momentum sums of velocities ``v``, with APIC's affine parts ``C`` if given.
-
-    ``sum_p N_i m_p (v_p + C_p (x_i - x_p))``, ``shape=(num_nodes, gdim)``; ``C.shape=(n, gdim, gdim)``.
-    """
-    sums = scatter(basis, _momenta(P.mass, v))
-    if C is None:
-        return sums
-    g = grid.gdim
-    mC = P.mass[:, None, None] * C
-    mCx = np.einsum("pab,pb->pa", mC, P.x[:, :g])
-    moments = scatter(basis, np.concatenate([mC.reshape(-1, g * g), mCx], axis=1))
-    mC_i, mCx_i = moments[:, : g * g].reshape(-1, g, g), moments[:, g * g :]
-    return sums + np.einsum("iab,ib->ia", mC_i, grid.node_x[:, :g]) - mCx_i
 
 
 def _momenta(mass: np.ndarray, v: np.ndarray) -> np.ndarray:
