@@ -31,6 +31,7 @@ class Grid:
         grad_N: P1 basis gradients in each cell [1/m], ``shape=(gdim + 1, gdim, num_cells)``.
         node_x: node coordinates, ``shape=(num_nodes, 3)``.
         h_min: smallest cell height over the local cells [m].
+        diameter: longest cell edge over the local cells [m].
 
     """
 
@@ -94,6 +95,8 @@ class Grid:
         facet_measure = _largest_facet_measure(X)
         self.cell_height = self.tdim * self.cell_volume / facet_measure
         self.h_min = float(self.cell_height.min()) if self.num_cells else np.inf
+        edges = X[:, :, None, :] - X[:, None, :, :]  # (num_cells, d+1, d+1, gdim), d+1 small
+        self.diameter = float(np.sqrt((edges**2).sum(axis=-1)).max()) if self.num_cells else 0.0
         self.tree = compat.bounding_box_tree(msh)
 
     def assemble(self, u: fem.Function, values: np.ndarray) -> np.ndarray:

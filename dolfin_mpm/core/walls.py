@@ -169,39 +169,49 @@ def contacts(
         time: the start of the step [s] (where moving walls are).
 
     """
-    out, lines = [], {}  # a line's first wall's place in out -> its walls
+    out, lines, keys = [], {}, {}  # a line's first wall's place in out -> its walls, and its key
+    tol = ON_LINE * grid.h_min
     for bc in conditions:
         if not isinstance(bc, RigidWall):
             out.append(bc)
             continue
-        for k, walls in lines.items():
-            w = walls[0]
-            if (
-                np.allclose(w.normal, bc.normal, rtol=0, atol=1e-12)
-                and np.array_equal(w.velocity, bc.velocity)
-                and abs(w.distance(bc.start(time)[None], time)[0]) <= ON_LINE * grid.h_min
-            ):
-                walls.append(bc)
-                break
-        else:
-            lines[len(out)] = [bc]
+        key = (*bc.normal, *bc.velocity, float(bc.normal @ bc.start(time)))  # the line, as it moves
+        k = next((k for k, other in keys.items() if _same_line(key, other, tol)), None)
+        if k is None:
+            keys[len(out)], lines[len(out)] = key, [bc]
             out.append(None)
+        else:
+            lines[k].append(bc)
     if not lines:
         return out
+    walls = [w for line in lines.values() for w in line]
+    values = np.zeros((len(x), len(walls)))
+    for j, w in enumerate(walls):  # only particles within a cell of a wall's line reach its nodes
+        near = np.flatnonzero(w.distance(x, time) < grid.diameter)
+        near = near[w.over(x[near], time)]
+        values[near, j] = m[near]
+    shares = scatter(basis, values)  # each wall's mass at each node, local sums
     with np.errstate(divide="ignore", invalid="ignore"):
         inv_mass = np.where(mass > 0.0, 1.0 / mass, 0.0)
-    for k, walls in lines.items():
-        w0 = walls[0]
-        behind = np.flatnonzero((w0.distance(grid.node_x, time) <= ON_LINE * grid.h_min) & (mass > 0.0))
+    column = 0
+    for k, line in lines.items():
+        w0 = line[0]
+        behind = np.flatnonzero((w0.distance(grid.node_x, time) <= tol) & (mass > 0.0))
         members = []
-        for w in walls:
-            share = grid.assemble(grid.scratch, scatter(basis, np.where(w.over(x, time), m, 0.0)))
+        for w in line:
+            share = grid.assemble(grid.scratch, np.ascontiguousarray(shares[:, column]))
             members.append((w, share[behind] * inv_mass[behind]))
+            column += 1
         touched = np.logical_or.reduce([alpha > 0.0 for _, alpha in members])
         nodes = behind[touched]
         members = [(w, alpha[touched]) for w, alpha in members]
         out[k] = Contact(nodes, w0.normal, members, mass[nodes], grid.num_owned_nodes)
     return out
+
+
+def _same_line(a: tuple, b: tuple, tol: float) -> bool:
+    """Whether two walls' keys (normal, velocity, offset) are one line moving as one."""
+    return a[:4] == b[:4] and abs(a[4] - b[4]) <= tol
 
 
 def stop_at_walls(walls: list, x: np.ndarray, dx: np.ndarray, v: np.ndarray, time: float, dt: float) -> int:
@@ -212,20 +222,25 @@ def stop_at_walls(walls: list, x: np.ndarray, dx: np.ndarray, v: np.ndarray, tim
     beyond the wall, ``v`` its component into the wall (relative to a moving wall).
     """
     stopped = 0
+    reach = np.sqrt(np.max(dx[:, 0] ** 2 + dx[:, 1] ** 2, initial=0.0))  # the longest move
     for w in walls:
         if not isinstance(w, RigidWall):
             continue
         phi0 = w.distance(x, time)
-        wall_move = dt * (w.velocity @ w.normal)  # the wall's own advance along its normal
-        phi1 = phi0 - dx[:, 0] * w.normal[0] - dx[:, 1] * w.normal[1] + wall_move
-        idx = np.flatnonzero((phi1 < 0.0) & (phi0 >= -ROUNDOFF * w.length))  # those stopped before too
+        advance = dt * (w.velocity @ w.normal)  # the wall's own move along its normal
+        idx = np.flatnonzero(phi0 < reach + abs(advance))  # only these can reach the wall
+        phi0 = phi0[idx]
+        phi1 = phi0 - dx[idx, 0] * w.normal[0] - dx[idx, 1] * w.normal[1] + advance
+        cross = (phi1 < 0.0) & (phi0 >= -ROUNDOFF * w.length)  # those stopped before too
+        idx, phi0, phi1 = idx[cross], phi0[cross], phi1[cross]
         if not idx.size:
             continue
-        share = (phi0[idx] / (phi0[idx] - phi1[idx]))[:, None]
+        share = (phi0 / (phi0 - phi1))[:, None]
         crossing = x[idx, :2] + share * dx[idx, :2]
         along = (crossing - w.start(time)) @ w.tangent - (w.velocity @ w.tangent) * dt * share[:, 0]
-        idx = idx[(along >= 0.0) & (along <= w.length)]
-        dx[idx, :2] += phi1[idx, None] * w.normal
+        on = (along >= 0.0) & (along <= w.length)
+        idx, phi1 = idx[on], phi1[on]
+        dx[idx, :2] += phi1[:, None] * w.normal
         vn = (v[idx, :2] - w.velocity) @ w.normal
         v[idx, :2] -= np.maximum(vn, 0.0)[:, None] * w.normal
         stopped += idx.size
