@@ -63,9 +63,21 @@ def test_silo_quick_discharge(tmp_path):
     assert (tmp_path / "particles.xdmf").exists()
 
 
+def test_silo_with_cells_refined_at_the_outlet_edges():
+    demo = load("demo_silo")
+    r = demo.run(h=0.025, radius=0.0, edge_cell=0.0125, t_end=0.05, t_settle=0.005, progress=False)
+    assert abs(r["mass_final"] - r["mass_initial"]) < 1e-12 * r["mass_initial"]
+    assert r["discharged"][-1] > 0.0
+    solver, _ = demo.build(h=0.025, radius=0.0, edge_cell=0.0125)
+    x = solver.grid.node_x
+    fine = np.isclose(np.diff(np.unique(x[:, 0].round(12))), 0.0125)  # the lines near the edges
+    assert fine.any() and not fine.all()
+
+
 @pytest.mark.parametrize(
     "sizes, match",
     [
+        (dict(edge_cell=0.02), "edge_cell must be in"),
         (dict(outlet=0.25), "outlet must be narrower"),
         (dict(h=-0.01), "h must be a positive length"),
         (dict(width=-0.2), "width must be a positive length"),
