@@ -361,7 +361,7 @@ STUDIES = {
     "weights": [dict(h=H_STUDY, radius=5e-3, weight=w) for w in ("cubic", "constant", "gaussian")],
     "friction": [dict(h=0.01, wall_friction=a) for a in (0.0, 10.0, 20.0, 30.0)],
     "shift": [dict(h=h, radius=0.0, shift=s) for h in (0.01, 0.005) for s in (0.0, 0.5)],
-    "edges": [dict(h=0.01, radius=0.0, edge_cell=e) for e in (None, 0.005, 0.0025, 0.00125)],
+    "edges": [dict(h=0.01, radius=0.0, edge_cell=e) for e in (None, 0.005, 0.0025)],
 }
 ARRAYS = ("t", "discharged", "x", "e_vp_bar", "profile_x", "profile_e_vp_bar", "profile_v_y")
 
@@ -618,6 +618,7 @@ def report(folder: Path, path: Path) -> str:
     def row(r):
         w = band_widths(r)
         shifted = f" (shifted {r['shift']:g} h)" if r.get("shift") else ""
+        shifted += f" ({1e3 * r['edge_cell']:g} at the edges)" if r.get("edge_cell") else ""
         return (
             f"| {1e3 * r['h']:g}{shifted} | {1e3 * r['radius']:g} | {r['weight']} | {r['wall_friction']:g} "
             f"| {r['flow_rate']:.1f} | {r['e_vp_bar_max']:.1f} "
