@@ -134,25 +134,29 @@ class Contact:
     """The walls of one line in one step: nodes and each wall's share ``alpha`` of each node.
 
     ``apply`` corrects nodal velocities like a boundary condition; the walls' corrections are
-    computed from the same velocities and added, and each wall's momentum change on this
-    rank's owned nodes is kept in ``impulses`` [N s] (by wall) until the next call.
+    computed from the same velocities and added. :meth:`forces` are those of the last call.
     """
 
     def __init__(self, nodes: np.ndarray, normal: np.ndarray, members: list, mass: np.ndarray, owned: int):
         self.nodes, self.normal, self.members = nodes, normal, members
         self.mass = np.where(nodes < owned, mass, 0.0)  # ghosts count on their owners
-        self.impulses: dict = {}
+        self.changes: list[np.ndarray] = []
 
     def apply(self, v: np.ndarray) -> None:
         """Correct the nodal velocities ``v`` (``shape=(num_nodes, gdim)``) in place."""
         vi = v[self.nodes]
-        dv = np.zeros_like(vi)
-        for wall, alpha in self.members:
-            vw = wall.velocity
-            change = alpha[:, None] * (coulomb(vi - vw, self.normal, wall.mu) + vw - vi)
-            self.impulses[wall] = self.mass @ change
-            dv += change
-        v[self.nodes] = vi + dv
+        self.changes = [
+            alpha[:, None] * (coulomb(vi - wall.velocity, self.normal, wall.mu) + wall.velocity - vi)
+            for wall, alpha in self.members
+        ]
+        v[self.nodes] = vi + sum(self.changes)
+
+    def forces(self, dt: float) -> dict:
+        """Each wall's force [N] on the material in the last :meth:`apply`, by wall.
+
+        Of a step ``dt`` [s], on this rank's owned nodes.
+        """
+        return {wall: self.mass @ change / dt for (wall, _), change in zip(self.members, self.changes)}
 
 
 def contacts(
@@ -169,38 +173,36 @@ def contacts(
         time: the start of the step [s] (where moving walls are).
 
     """
-    out, lines, keys = [], {}, {}  # a line's first wall's place in out -> its walls, and its key
+    out, lines = [], {}  # a line's first wall's place in out -> (the line's key, its walls)
     tol = ON_LINE * grid.h_min
     for bc in conditions:
         if not isinstance(bc, RigidWall):
             out.append(bc)
             continue
         key = (*bc.normal, *bc.velocity, float(bc.normal @ bc.start(time)))  # the line, as it moves
-        k = next((k for k, other in keys.items() if _same_line(key, other, tol)), None)
+        k = next((k for k, (other, _) in lines.items() if _same_line(key, other, tol)), None)
         if k is None:
-            keys[len(out)], lines[len(out)] = key, [bc]
+            lines[len(out)] = (key, [bc])
             out.append(None)
         else:
-            lines[k].append(bc)
+            lines[k][1].append(bc)
     if not lines:
         return out
-    walls = [w for line in lines.values() for w in line]
+    walls = [w for _, line in lines.values() for w in line]
     values = np.zeros((len(x), len(walls)))
     for j, w in enumerate(walls):  # only particles within a cell of a wall's line reach its nodes
         near = np.flatnonzero(w.distance(x, time) < grid.diameter)
         near = near[w.over(x[near], time)]
         values[near, j] = m[near]
     shares = scatter(basis, values)  # each wall's mass at each node, local sums
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv_mass = np.where(mass > 0.0, 1.0 / mass, 0.0)
     column = 0
-    for k, line in lines.items():
+    for k, (_, line) in lines.items():
         w0 = line[0]
         behind = np.flatnonzero((w0.distance(grid.node_x, time) <= tol) & (mass > 0.0))
         members = []
         for w in line:
             share = grid.assemble(grid.scratch, np.ascontiguousarray(shares[:, column]))
-            members.append((w, share[behind] * inv_mass[behind]))
+            members.append((w, share[behind] / mass[behind]))
             column += 1
         touched = np.logical_or.reduce([alpha > 0.0 for _, alpha in members])
         nodes = behind[touched]

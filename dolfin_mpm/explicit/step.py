@@ -24,7 +24,7 @@ as assembly buffers and hold the step's nodal fields for output at its end.
 """
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from mpi4py import MPI
@@ -88,8 +88,6 @@ class Nodal:
         f_int: internal force ``R`` of the start-of-step stresses [N], same shape.
         bcs: the step's boundary conditions: the nodal ones, and each line of rigid walls as
             the :class:`~dolfin_mpm.core.walls.Contact` of the particles over it.
-        reactions: the force [N] of each rigid wall on the material (on this rank's owned
-            nodes), by wall, from the last nodal solve.
 
     """
 
@@ -99,7 +97,6 @@ class Nodal:
     f_ext: np.ndarray
     f_int: np.ndarray
     bcs: list
-    reactions: dict = field(default_factory=dict)
 
     def apply_bcs(self, v: np.ndarray) -> None:
         """Correct nodal velocities ``v`` (``shape=(num_nodes, gdim)``) in place."""
@@ -134,7 +131,8 @@ def nodal_solve(model: Model, nodal: Nodal, R: np.ndarray, dt: float) -> tuple[n
     the reaction nor resists the motion a boundary condition prescribes.
 
     Returns:
-        The velocity, the acceleration and ``F_c``, each ``shape=(num_nodes, gdim)``.
+        The velocity, the acceleration and ``F_c``, each ``shape=(num_nodes, gdim)``, and each
+        rigid wall's share of ``F_c`` on this rank's owned nodes [N], by wall.
 
     """
     gdim, damping = model.grid.gdim, model.options.damping
@@ -146,12 +144,12 @@ def nodal_solve(model: Model, nodal: Nodal, R: np.ndarray, dt: float) -> tuple[n
     v_new = v_trial.copy()
     nodal.apply_bcs(v_new)
     f_contact = m * (v_new - v_trial) / dt
-    nodal.reactions = {w: i / dt for c in nodal.bcs if isinstance(c, Contact) for w, i in c.impulses.items()}
+    reactions = {w: f for c in nodal.bcs if isinstance(c, Contact) for w, f in c.forces(dt).items()}
     if damping > 0.0:
         f_out = f + f_contact
         v_new = v + dt * (f_out - damping * np.abs(f_out) * np.sign(v)) * inv_m
         nodal.apply_bcs(v_new)
-    return v_new, (v_new - v) / dt, f_contact
+    return v_new, (v_new - v) / dt, f_contact, reactions
 
 
 def g2p(
@@ -290,7 +288,7 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         converged = False
     constitutive = Constitutive(model.materials, P)
     for k in range(1, (1 if average is None else options.fixed_point_max_iter) + 1):
-        v_node, a_node, f_contact = nodal_solve(model, nodal, R_node, dt)
+        v_node, a_node, f_contact, reactions = nodal_solve(model, nodal, R_node, dt)
         timer.lap("nodal_solve")
         v, v_grid, L, v_node = g2p(model, P, basis, nodal, v_node, a_node, dt)
         timer.lap("g2p")
@@ -328,7 +326,7 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         if options.extrapolation:
             state.R_changes = [R - R_start, *state.R_changes][: options.extrapolation]
         grid.refresh_ghosts(grid.f_int, R)  # the R of the stresses the step ends with
-    state.reactions = nodal.reactions
+    state.reactions = reactions
     P.sigma, P.volume = sigma, volume
     constitutive.record(P, de, de_bar, dt)
     if free_volume is not None:
