@@ -42,8 +42,9 @@ SAND = {"E": 1e6, "nu": 0.3, "rho": 1500.0, "phi": 30.0, "gamma": 1e3, "N": 1.0}
 
 
 def run(
-    cells, radius, weight="cubic", shear=0.05, rate=5.0, p0=1e4, imperfection=0.1, weak=2e-3, progress=False
-):
+    cells, radius, weight="cubic", shear=0.05, rate=5.0, p0=1e4, imperfection=0.1, weak=2e-3, progress=False,
+    law="max",
+):  # fmt: skip
     """Shear a layer of ``cells`` x ``cells`` squares (two triangles each) to the strain ``shear``.
 
     Args:
@@ -55,6 +56,7 @@ def run(
         p0: initial pressure [Pa].
         imperfection: relative drop of sigma_xx and sigma_zz in the weak layer.
         weak: thickness of the weak layer [m], centred at mid-height.
+        law: the non-local law (:class:`dolfin_mpm.NonlocalLaw` or its name).
 
     Returns:
         dict with the profiles across the layer (bin centres ``y`` relative to mid-height)
@@ -94,7 +96,7 @@ def run(
         dm.VelocityBC(grid.nodes_where(lambda x: np.isclose(x[1], 0.0)), (0.0, 0.0)),
         dm.VelocityBC(grid.nodes_where(lambda x: np.isclose(x[1], H)), (V, 0.0)),
     ]
-    averaging = dm.NonlocalAverage(radius, weight) if radius > 0 else None
+    averaging = dm.NonlocalAverage(radius, weight, law=law) if radius > 0 else None
     beyond_walls = dm.Sink("beyond walls", region=lambda x: (x[0] < -0.5 * h) | (x[0] > H + 0.5 * h))
     solver = dm.Solver(grid, P, sand, bcs=bcs, averaging=averaging, sinks=[beyond_walls])
 
@@ -143,6 +145,8 @@ def run(
         "steps": n_steps,
         "seconds": elapsed,
         "mean_iterations": fp["iterations"] / fp["steps"] if fp["steps"] else 1.0,
+        "max_iterations": fp["max_iterations"],
+        "unconverged": fp["unconverged"],
     }
 
 

@@ -74,7 +74,8 @@ def grid_lines(lo: float, hi: float, h: float, fine: float | None = None, zones=
 
 
 def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, height=0.3, outlet=0.1, ppc=4,
-          shift=0.0, edge_cell=None, edge_zone=0.04, comm=MPI.COMM_WORLD, strips=True):  # fmt: skip
+          shift=0.0, edge_cell=None, edge_zone=0.04, comm=MPI.COMM_WORLD, strips=True,
+          law="max"):  # fmt: skip
     """The silo on a mesh of ``h`` [m]: solver, sinks and the outlet's gate, before settling.
 
     The walls, the bottom plates and the gate are rigid walls as geometry
@@ -84,6 +85,7 @@ def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, he
         h: cell size [m] (squares of two triangles); must divide the silo's width and height.
         radius: non-local radius r [m]; 0 for the local (viscoplastic) model.
         weight: the averaging weight.
+        law: the non-local law, :data:`dolfin_mpm.averaging.LAWS` (its default ``m``).
         wall_friction: wall and bottom friction angle [degrees], in [0, 90).
         width, height, outlet: silo sizes [m]; the outlet is centred in the bottom.
         ppc: particles per triangle.
@@ -156,7 +158,7 @@ def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, he
     sink = dm.Sink(
         "discharged", region=lambda x: (x[1] < -drop) | ((x[1] < 0.0) & ((x[0] < x0) | (x[0] > x1)))
     )
-    averaging = dm.NonlocalAverage(radius, weight)  # checks r >= 0; r = 0 is the local model
+    averaging = dm.NonlocalAverage(radius, weight, law=law)  # checks r >= 0; r = 0 is the local model
     solver = dm.Solver(
         grid, P, sand, bcs=[*walls, gate], gravity=(0.0, -G), sinks=[sink], averaging=averaging
     )
@@ -202,7 +204,7 @@ class Monitor:
 
 def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, height=0.3, outlet=0.1,
         ppc=4, shift=0.0, edge_cell=None, t_end=0.25, t_settle=0.02, output=None, interval=0.005,
-        progress=True, comm=MPI.COMM_WORLD):  # fmt: skip
+        progress=True, comm=MPI.COMM_WORLD, law="max"):  # fmt: skip
     """Settle the fill, open the outlet at t = 0 and discharge until ``t_end`` [s].
 
     Args:
@@ -226,7 +228,7 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, heig
     if not t_settle >= 0.0:
         raise ValueError(f"t_settle must be >= 0 s, got {t_settle!r}")
     solver, gate = build(
-        h, radius, weight, wall_friction, width, height, outlet, ppc, shift, edge_cell, comm=comm
+        h, radius, weight, wall_friction, width, height, outlet, ppc, shift, edge_cell, comm=comm, law=law
     )
     m0 = solver.total_mass()
     t0 = time.perf_counter()
@@ -259,6 +261,7 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, heig
         "h": h,
         "radius": radius,
         "weight": weight,
+        "law": law,
         "wall_friction": wall_friction,
         "shift": shift,
         "edge_cell": edge_cell,
@@ -366,11 +369,14 @@ STUDIES = {
 ARRAYS = ("t", "discharged", "x", "e_vp_bar", "profile_x", "profile_e_vp_bar", "profile_v_y")
 
 
-def run_key(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, shift=0.0, edge_cell=None) -> str:
+def run_key(
+    h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, shift=0.0, edge_cell=None, law="max"
+) -> str:
     """Name of a stored run: the study parameters; every other setting is :func:`run`'s default."""
     shifted = f"_shift{shift:g}" if shift else ""
     edges = f"_edges{1e3 * edge_cell:g}mm" if edge_cell else ""
-    return f"h{1e3 * h:g}mm_r{1e3 * radius:g}mm_{weight}_wall{wall_friction:g}{shifted}{edges}"
+    rule = f"_{law}" if law != "max" and radius > 0 else ""
+    return f"h{1e3 * h:g}mm_r{1e3 * radius:g}mm_{weight}_wall{wall_friction:g}{shifted}{edges}{rule}"
 
 
 def stored_run(folder: Path, **params) -> dict | None:

@@ -23,6 +23,7 @@ _PUBLIC = {
     "FrictionalWall": "dolfin_mpm.core.boundary",
     "Grid": "dolfin_mpm.core.grid",
     "NonlocalAverage": "dolfin_mpm.averaging",
+    "NonlocalLaw": "dolfin_mpm.averaging",
     "Output": "dolfin_mpm.io.xdmf",
     "Particles": "dolfin_mpm.core.particles",
     "RigidWall": "dolfin_mpm.core.walls",

@@ -48,6 +48,10 @@ region = { min = [0.0, 0.0], max = [1.0, 0.0] }
 normal = [0.0, -1.0]
 friction_angle = 95.0
 
+[nonlocal]
+radius = 0.1
+law = "overnonlocal"
+
 [time]
 end = -1.0
 
@@ -67,6 +71,7 @@ def test_every_problem_is_reported_with_its_toml_path(tmp_path):
         'mesh.upper: must be an array of 2 numbers, got [1.0, "top"]',
         "materials.sand.nu: missing (must be in (-1, 0.5))",
         "materials.sand.phi: must be in (0, 90) degrees, got 120",
+        'nonlocal.law: must be one of "max", "paper", "overstress", got "overnonlocal"',
         'bodies.block.material: must be one of "sand", got "clay"',
         "bodies.block.ppc: must be a square number (1, 4, 9, ...) on triangles, got 3",
         "walls.floor.friction_angle: must be in [0, 90) degrees, got 95.0",
@@ -147,15 +152,18 @@ def test_a_wall_that_holds_no_node_is_named(tmp_path):
         scenario.build(cfg)
 
 
-def test_silo_scenario_is_the_silo_demo(tmp_path):
+@pytest.mark.parametrize("law", ["max", "paper", "overstress"])
+def test_silo_scenario_is_the_silo_demo(tmp_path, law):
     """The silo file, coarsened with --set, takes the demo's steps bit for bit (settling, opening)."""
     h, r = 0.025, 0.02
     rows = math.ceil(0.05 / h) + 1  # as the demo lays out its grid
-    reference = load("demo_silo").run(h=h, radius=r, t_end=0.02, t_settle=0.01, progress=False)
+    reference = load("demo_silo").run(h=h, radius=r, t_end=0.02, t_settle=0.01, progress=False, law=law)
+    if law != "overstress":  # its loop leaves steps unconverged (docs/numerics.md): not yet solved
+        assert reference["unconverged"] == 0
     overrides = [
         f"mesh.lower=[0.0, {-rows * h!r}]", f"mesh.upper=[0.2, {0.3 + h!r}]",
         f"mesh.cells=[8, {rows + 13}]", f"nonlocal.radius={r}", "time.start=-0.01", "time.end=0.02",
-        "output.xdmf=false", "output.figures=false",
+        "output.xdmf=false", "output.figures=false", f'nonlocal.law="{law}"',
     ]  # fmt: skip
     sim = scenario.build(scenario.load(DEMOS / "silo.toml", overrides))
     Runner(sim, tmp_path, progress=False).run()

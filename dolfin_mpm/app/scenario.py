@@ -25,6 +25,7 @@ except ModuleNotFoundError:  # Python < 3.11
 from mpi4py import MPI
 
 from dolfin_mpm.app.regions import Expression, Region
+from dolfin_mpm.averaging.law import LAWS
 from dolfin_mpm.averaging.nonlocal_average import WEIGHTS, NonlocalAverage
 from dolfin_mpm.core import compat
 from dolfin_mpm.core.boundary import FixedBC, FrictionalWall, SlipBC, VelocityBC
@@ -534,12 +535,14 @@ def _material(c: _Checker, t: dict, path: str) -> dict:
 
 def _nonlocal(c: _Checker, t: dict | None, materials: dict) -> dict:
     if t is None:
-        return {"radius": 0.0, "weight": "cubic", "skin": None}
-    c.keys(t, "nonlocal", ("radius", "weight", "skin"))
+        return {"radius": 0.0, "weight": "cubic", "skin": None, "law": "max", "boundary_correction": False}
+    c.keys(t, "nonlocal", ("radius", "weight", "skin", "law", "boundary_correction"))
     n = {
         "radius": c.value(t, "nonlocal", "radius", "number", 0.0, True, NonlocalAverage.RADIUS),
         "weight": c.value(t, "nonlocal", "weight", "string", "cubic", check=tuple(WEIGHTS)),
         "skin": c.value(t, "nonlocal", "skin", "number", None, check=NonlocalAverage.SKIN),
+        "law": c.value(t, "nonlocal", "law", "string", "max", check=LAWS),
+        "boundary_correction": c.value(t, "nonlocal", "boundary_correction", "bool", False),
     }
     models = [m["model"] for m in materials.values()]
     if n["radius"] > 0.0 and not any(MODELS[m][0].plastic for m in models if m in MODELS):
@@ -926,7 +929,11 @@ def build(cfg: dict, comm=MPI.COMM_WORLD) -> Simulation:
 
     sinks = [Sink(name, region=_make_region(s["region"], tol)) for name, s in cfg["sinks"].items()]
     n = cfg["nonlocal"]
-    averaging = NonlocalAverage(n["radius"], n["weight"], n["skin"]) if n["radius"] > 0.0 else None
+    averaging = (
+        NonlocalAverage(n["radius"], n["weight"], n["skin"], n["law"], n["boundary_correction"])
+        if n["radius"] > 0.0
+        else None
+    )
     s = cfg["solver"]
     try:
         solver = Solver(

@@ -30,9 +30,10 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from dolfin_mpm import native
+from dolfin_mpm.averaging.law import NonlocalLaw
 from dolfin_mpm.params import Range
 
-__all__ = ["WEIGHTS", "IdIndex", "NonlocalAverage"]
+__all__ = ["WEIGHTS", "IdIndex", "NonlocalAverage", "ball_weight"]
 
 #: The weights w(s), s = distance / r, zero for s >= 1: ``1 + s^2 (2s - 3)``, ``1`` and
 #: ``exp(-2.5 s^2)``; the value is the kernel's code for each.
@@ -109,19 +110,36 @@ class NonlocalAverage:
         radius: support radius r [m], >= 0; 0 switches averaging off (local model).
         weight: ``"cubic"``, ``"constant"`` or ``"gaussian"``.
         skin: extra search distance [m] that lets pairs be reused, >= 0; default ``r / 4``.
+        law: how the average enters the stress, a :class:`~dolfin_mpm.averaging.law.NonlocalLaw`
+            or its name (see :mod:`dolfin_mpm.averaging.law`).
+        boundary_correction: the weight a point misses beyond a free surface or a wall (the
+            ball's full weight less its neighbours') goes to its own value (Borino, Failla &
+            Parrinello 2003): ``avg_i = (sum_j w_ij V_j e_j + max(W - D_i, 0) e_i) / max(W, D_i)``,
+            ``D_i = sum_j w_ij V_j``, ``W`` the integral of the weight over the ball.
 
     """
 
     #: The allowed radius and skin [m].
     RADIUS = SKIN = Range(0.0, math.inf, "m", (True, False))
 
-    def __init__(self, radius: float, weight: str = "cubic", skin: float | None = None):
+    def __init__(
+        self,
+        radius: float,
+        weight: str = "cubic",
+        skin: float | None = None,
+        law: NonlocalLaw | str = "max",
+        boundary_correction: bool = False,
+    ):
         self.RADIUS.check("radius", radius)
         if weight not in WEIGHTS:
             raise ValueError(f"weight must be one of {sorted(WEIGHTS)}, got {weight!r}")
         skin = 0.25 * radius if skin is None else skin
         self.SKIN.check("skin", skin)
         self.radius, self.weight, self.skin = float(radius), weight, float(skin)
+        self.law = law if isinstance(law, NonlocalLaw) else NonlocalLaw(law)
+        if not isinstance(boundary_correction, bool):
+            raise ValueError(f"boundary_correction must be true or false, got {boundary_correction!r}")
+        self.boundary_correction = boundary_correction
         self._slot_ids = None
         self._pairs = _Pairs.empty(0, 0)
         self._within, self._w = _Pairs.empty(0, 0), np.zeros(0)  # the pairs closer than r, weights
@@ -269,6 +287,10 @@ class NonlocalAverage:
         self._runs_within = int(runs[0])
         self._volume = volume
         self._denominator = self._apply(volume)
+        if self.boundary_correction:
+            full = ball_weight(self.weight, self.radius, x.shape[1])
+            self._missing = np.maximum(full - self._denominator, 0.0)  # W - D_i where D_i < W
+            self._denominator = np.maximum(self._denominator, full)
 
     def _moved_far(self, x: np.ndarray, slot: np.ndarray, arriving: bool) -> bool:
         """Whether a known particle has moved too far since its pairs were found.
@@ -304,7 +326,22 @@ class NonlocalAverage:
         """The average of the field ``e`` (``shape=(n,)``) with the weights of the last update."""
         if self.is_local:
             return e
+        if self.boundary_correction:
+            return (self._apply(self._volume * e) + self._missing * e) / self._denominator
         return self._apply(self._volume * e) / self._denominator
+
+
+def ball_weight(weight: str, radius: float, gdim: int) -> float:
+    """The integral of the weight ``w(|x| / r)`` over the ball of radius r [m^gdim] (a disc in 2D)."""
+    s = np.linspace(0.0, 1.0, 2001)
+    w = {
+        "cubic": 1.0 + s * s * (2.0 * s - 3.0),
+        "constant": np.ones_like(s),
+        "gaussian": np.exp(-2.5 * s * s),
+    }
+    sphere = 2.0 * math.pi if gdim == 2 else 4.0 * math.pi  # the unit circle's length, sphere's area
+    f = w[weight] * s ** (gdim - 1)
+    return float(sphere * radius**gdim * np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(s)))
 
 
 def _search(x: np.ndarray, reach: float, capacity: int | None = None) -> _Pairs:

@@ -22,7 +22,7 @@ from dolfin_mpm.core.walls import RigidWall
 from dolfin_mpm.explicit.options import Options
 from dolfin_mpm.explicit.progress import Progress
 from dolfin_mpm.explicit.state import State
-from dolfin_mpm.explicit.step import Model, SimulationError, advance
+from dolfin_mpm.explicit.step import CORRECTION, Model, SimulationError, advance
 from dolfin_mpm.explicit.timer import Timer
 from dolfin_mpm.materials import Material
 from dolfin_mpm.parallel import ids
@@ -82,6 +82,14 @@ class Solver:
         ):
             raise ValueError(f"particles.material must index the {len(materials)} materials")
         particles.ensure_state({k: v for m in materials for k, v in m.state_fields().items()})
+        if averaging is not None and averaging.law.iterative:
+            if averaging.law.name == "overstress":
+                lacking = [type(m).__name__ for m in materials if m.plastic and not hasattr(m, "yield_value")]
+                if lacking:
+                    raise ValueError(
+                        f"the overstress law needs a yield value of q, which {lacking} do not give"
+                    )
+            particles.ensure_state({CORRECTION: ()})
         ids.number(grid.comm, particles)
         #: The largest stable time step [s]: ``courant * h_min / max p-wave speed``.
         self.critical_dt = (

@@ -39,16 +39,21 @@ from dolfin_mpm.explicit.anderson import Anderson
 from dolfin_mpm.explicit.options import Options
 from dolfin_mpm.explicit.state import State
 from dolfin_mpm.explicit.timer import Timer
+from dolfin_mpm.materials.base import Trial
 from dolfin_mpm.materials.separation import separate
 from dolfin_mpm.parallel.migration import migrate
 
-__all__ = ["STAGES", "Model", "Nodal", "SimulationError", "advance", "p2g"]
+__all__ = ["CORRECTION", "STAGES", "Model", "Nodal", "SimulationError", "advance", "p2g"]
 
 #: The stages of :func:`advance` in their order; each step's times add up to the step.
 STAGES = (
     "sinks", "locate", "migrate", "basis", "p2g", "neighbours", "nodal_solve", "g2p",
     "return_mapping", "averaging", "stress", "internal_force", "convergence", "move",
 )  # fmt: skip
+
+#: The particle state field of an iterative non-local law's correction of the trial ``q`` [Pa]
+#: (:mod:`dolfin_mpm.averaging.law`): each step starts from the last one's.
+CORRECTION = "nonlocal_correction"
 
 
 class SimulationError(RuntimeError):
@@ -209,19 +214,51 @@ class Constitutive:
             #: state lags a step, as an explicit scheme may, and stays fixed in the loop's iterates).
             self.apart = P.state["free_volume"] > 0.0
 
-    def increments(self, P: Particles, L: np.ndarray, dt: float) -> tuple[list, np.ndarray]:
-        """Each group's trial state and every particle's local increment ``de``, ``shape=(n,)``."""
+    def increments(
+        self, P: Particles, L: np.ndarray, dt: float, dq: np.ndarray | None = None
+    ) -> tuple[list, np.ndarray]:
+        """Each group's trial state and every particle's increment ``de``, ``shape=(n,)``.
+
+        ``dq`` [Pa] ``shape=(n,)``: a non-local law's correction of the trial ``q`` that each
+        return takes (:mod:`dolfin_mpm.averaging.law`), set to 0 in place at an apex, where a
+        point is stress free whatever its neighbours; ``None``: the local returns.
+        """
         trials, parts = [], []
         for material, idx, state in self.groups:
             trial = material.trial(P.sigma[idx], L[idx], dt)
             trials.append(trial)
+            if dq is not None:
+                shift = dq[idx]
+                if hasattr(material, "at_apex"):
+                    shift[material.at_apex(trial)] = 0.0
+                    dq[idx] = shift
+                trial = Trial(trial.p, trial.s, np.maximum(trial.q + shift, 0.0))
             parts.append(material.increment(trial, state, dt))
+        return trials, self._gather(P, parts)
+
+    def law_fields(self, P: Particles, trials: list, overstress: bool) -> tuple[np.ndarray, ...]:
+        """What a non-local law reads of the trial states, each ``shape=(n,)``.
+
+        Trial ``q`` [Pa], ``2 G`` [Pa], the points at an apex (stress free whatever their
+        neighbours: no correction) and, for the overstress law, the yield value of ``q`` [Pa].
+        """
+        groups = [(m, t) for (m, _, _), t in zip(self.groups, trials)]
+        q = self._gather(P, [t.q for t in trials])
+        two_G = self._gather(P, [np.full(len(t.q), 2.0 * m.G) for m, t in groups])
+        apex = self._gather(
+            P, [m.at_apex(t) if hasattr(m, "at_apex") else np.zeros(len(t.q)) for m, t in groups]
+        )
+        y = self._gather(P, [m.yield_value(t) for m, t in groups]) if overstress else None
+        return q, two_G, apex > 0.0, y
+
+    def _gather(self, P: Particles, parts: list) -> np.ndarray:
+        """One particle array from the groups' parts."""
         if len(parts) == 1:
-            return trials, parts[0]
-        de = np.empty(len(P))
+            return parts[0]
+        out = np.empty(len(P))
         for (_, idx, _), part in zip(self.groups, parts):
-            de[idx] = part
-        return trials, de
+            out[idx] = part
+        return out
 
     def stresses(self, P: Particles, trials: list, de: np.ndarray, de_bar: np.ndarray | None) -> np.ndarray:
         """The stresses with the local and (if any) non-local increments, ``shape=(n, 3, 3)``."""
@@ -239,10 +276,18 @@ class Constitutive:
             return P.volume * J, None
         return separate(P.volume, P.state["free_volume"], J, self.critical_volume)
 
-    def record(self, P: Particles, de: np.ndarray, de_bar: np.ndarray | None, dt: float) -> None:
-        """Each material's state after the step (into ``P.state``)."""
+    def record(
+        self,
+        P: Particles,
+        de: np.ndarray,
+        de_bar: np.ndarray | None,
+        dt: float,
+        applied: np.ndarray | None = None,
+    ) -> None:
+        """Each material's state after the step (into ``P.state``); ``applied``: see ``Material.record``."""
+        part = lambda a, idx: None if a is None else a[idx]  # noqa: E731
         for material, idx, state in self.groups:
-            material.record(state, de[idx], None if de_bar is None else de_bar[idx], dt)
+            material.record(state, de[idx], part(de_bar, idx), dt, applied=part(applied, idx))
             if len(self.groups) > 1:
                 for name, a in state.items():
                     P.state[name][idx] = a
@@ -277,6 +322,7 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         timer.lap("neighbours")
 
     R_node = nodal.f_int  # with ghosts: what the nodal solve reads
+    law = None if average is None else average.law
     if average is not None:  # the loop's start: owned R, first iterate, scale of the test
         owned = grid.num_owned_nodes * grid.gdim
         R_start = R_in = nodal.f_int[:owned].copy()
@@ -286,19 +332,33 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         scale_F = math.sqrt(comm.allreduce(float(nodal.f_ext[:owned] @ nodal.f_ext[:owned]), MPI.SUM))
         mixer = Anderson(options.anderson_depth, comm)
         converged = False
+        if law.iterative:  # the correction of the trial q, from the last step's end
+            dq_in, weight = P.state[CORRECTION].copy(), None
     constitutive = Constitutive(model.materials, P)
+    applied = None
     for k in range(1, (1 if average is None else options.fixed_point_max_iter) + 1):
         v_node, a_node, f_contact, reactions = nodal_solve(model, nodal, R_node, dt)
         timer.lap("nodal_solve")
         v, v_grid, L, v_node = g2p(model, P, basis, nodal, v_node, a_node, dt)
         timer.lap("g2p")
-        trials, de = constitutive.increments(P, L, dt)
-        timer.lap("return_mapping")
-        de_bar = None
-        if average is not None:
-            de_bar = average(de)
+        if law is not None and law.iterative:
+            dq = dq_in.copy()
+            trials, de = constitutive.increments(P, L, dt, dq)
+            timer.lap("return_mapping")
+            q_trial, two_G, apex, y = constitutive.law_fields(P, trials, law.name == "overstress")
+            applied = de_bar = law.applied(de, dq, two_G)
+            dq_next = law.correction(average, de, applied, q_trial, two_G, y)
+            dq_next[apex] = 0.0
             timer.lap("averaging")
-        sigma = constitutive.stresses(P, trials, de, de_bar)
+            sigma = constitutive.stresses(P, trials, applied, None)
+        else:
+            trials, de = constitutive.increments(P, L, dt)
+            timer.lap("return_mapping")
+            de_bar = None
+            if average is not None:
+                de_bar = average(de)
+                timer.lap("averaging")
+            sigma = constitutive.stresses(P, trials, de, de_bar)
         volume, free_volume = constitutive.volumes(P, L, dt)
         if free_volume is not None:
             sigma[constitutive.apart] = 0.0  # stress free until the free volume has closed
@@ -307,11 +367,25 @@ def advance(model: Model, state: State, timer: Timer) -> None:
             break
         R = grid.assemble(grid.f_int, internal_force(basis, sigma, volume)).ravel()[:owned].copy()
         timer.lap("internal_force")
-        norms = comm.allreduce(np.array([(R - R_in) @ (R - R_in), R @ R]), MPI.SUM)
-        converged = math.sqrt(norms[0]) <= options.fixed_point_tol * max(math.sqrt(norms[1]), scale_F, 1e-300)
+        sums = [(R - R_in) @ (R - R_in), R @ R]
+        if applied is not None:
+            change = dq_next - dq
+            sums += [change @ change, q_trial @ q_trial]
+        norms = np.sqrt(comm.allreduce(np.array(sums), MPI.SUM))
+        tol = options.fixed_point_tol
+        converged = norms[0] <= tol * max(norms[1], scale_F, 1e-300)
+        if applied is not None:  # and the correction, relative to the stresses it corrects
+            converged &= norms[2] <= tol * max(norms[3], 1e-300)
         if not converged:
             R_next = R_in + options.relaxation * (R - R_in)
-            R_in = mixer(R_in, R_next)  # depth 0: R_next itself
+            if applied is None:
+                R_in = mixer(R_in, R_next)  # depth 0: R_next itself
+            else:  # R and the correction mixed as one vector, each part scaled to its size
+                if weight is None:
+                    weight = max(norms[1], scale_F, 1e-300) / max(norms[3], 1e-300)
+                dq_mix = weight * (dq + options.relaxation * (dq_next - dq))
+                mixed = mixer(np.r_[R_in, weight * dq], np.r_[R_next, dq_mix])
+                R_in, dq_in = mixed[:owned], mixed[owned:] / weight
             R_node = grid.refresh_ghosts(grid.f_int, R_in).copy()  # f_int takes the next R
         timer.lap("convergence")
         if converged:
@@ -326,9 +400,11 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         if options.extrapolation:
             state.R_changes = [R - R_start, *state.R_changes][: options.extrapolation]
         grid.refresh_ghosts(grid.f_int, R)  # the R of the stresses the step ends with
+        if applied is not None:
+            P.state[CORRECTION] = dq_next
     state.reactions = reactions
     P.sigma, P.volume = sigma, volume
-    constitutive.record(P, de, de_bar, dt)
+    constitutive.record(P, de, de_bar, dt, applied)
     if free_volume is not None:
         P.state["free_volume"] = free_volume
     dx = dt * v_grid

@@ -104,12 +104,18 @@ class Material(ABC):
 
     @abstractmethod
     def record(
-        self, state: dict[str, np.ndarray], de: np.ndarray, de_nonlocal: np.ndarray | None, dt: float
+        self,
+        state: dict[str, np.ndarray],
+        de: np.ndarray,
+        de_nonlocal: np.ndarray | None,
+        dt: float,
+        applied: np.ndarray | None = None,
     ) -> None:
         """Update ``state`` in place with the step's increments (``de_nonlocal=None``: ``de``).
 
-        The accumulated strain takes ``max(de, de_nonlocal)``, what the neighbours impose, also
-        where :meth:`stress` caps it at the apex.
+        The accumulated strain takes ``applied``, the increment the stress applied (a
+        non-local law's, :mod:`dolfin_mpm.averaging.law`); by default ``max(de, de_nonlocal)``,
+        what the neighbours impose, also where :meth:`stress` caps it at the apex.
         """
 
     @abstractmethod

@@ -141,11 +141,15 @@ class DruckerPragerViscoplastic(RadialReturn):
         _kernels().dp_end_state(len(de), trial.p, trial.q, de, de_nonlocal, self.G, self.tension_limit, p, q)
         return self.radial_stress(trial, q, p)
 
-    def record(self, state, de, de_nonlocal, dt):
+    def record(self, state, de, de_nonlocal, dt, applied=None):
         """Store the local and non-local rates [1/s] and accumulate the applied strain ``eps_vp``."""
         state["eps_vp_rate"][:] = de / dt
         state["eps_vp_rate_nonlocal"][:] = (de if de_nonlocal is None else de_nonlocal) / dt
-        state["eps_vp"][:] += applied_increment(de, de_nonlocal)
+        state["eps_vp"][:] += applied_increment(de, de_nonlocal, applied)
+
+    def yield_value(self, trial: Trial) -> np.ndarray:
+        """The yield value of ``q`` at the trial pressure, ``m (p + c cot(phi))`` [Pa], ``shape=(n,)``."""
+        return self.m * (trial.p + self.tension_limit)
 
     def tangent(self, trial: Trial, de: np.ndarray, dt: float) -> np.ndarray:
         """Consistent tangent of the local update ``stress(trial, increment(trial, state, dt))``.

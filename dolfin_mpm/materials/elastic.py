@@ -101,7 +101,7 @@ class LinearElastic(Material):
             sigma[i, i] -= trial.p
         return particle_first(sigma)
 
-    def record(self, state, de, de_nonlocal, dt):
+    def record(self, state, de, de_nonlocal, dt, applied=None):
         """No state."""
 
     def tangent(self, trial, de, dt):

@@ -114,9 +114,9 @@ class MohrCoulombDruckerPrager(RadialReturn):
         p = np.where(apex, -self.tension_limit, trial.p + (2.0 / 3.0) * self.K * self.M_g * d)
         return self.radial_stress(trial, q, p)
 
-    def record(self, state, de, de_nonlocal, dt):
-        """Accumulate ``eps_p += 2/3 max(de, de_nonlocal)`` (``q_trial / 3G`` at the apex)."""
-        state["eps_p"][:] += (2.0 / 3.0) * applied_increment(de, de_nonlocal)
+    def record(self, state, de, de_nonlocal, dt, applied=None):
+        """Accumulate ``eps_p += 2/3 applied`` (``q_trial / 3G`` at the apex)."""
+        state["eps_p"][:] += (2.0 / 3.0) * applied_increment(de, de_nonlocal, applied)
 
     def tangent(self, trial: Trial, de: np.ndarray, dt: float) -> np.ndarray:
         """Consistent tangent of the return [Pa] (Mandel), ``shape=(n, 6, 6)``; zero at the apex."""

@@ -34,8 +34,10 @@ _SIGNATURES = {"radial_stress": (ctypes.c_int64, *[_REAL] * 5)}
 _kernels = native.kernels(Path(__file__).with_suffix(".c"), _SIGNATURES)
 
 
-def applied_increment(de: np.ndarray, de_nonlocal: np.ndarray | None) -> np.ndarray:
-    """``max(de, de_nonlocal)``, or ``de`` itself when there is no non-local increment."""
+def applied_increment(de: np.ndarray, de_nonlocal: np.ndarray | None, applied: np.ndarray | None = None):
+    """``applied`` if given, else ``max(de, de_nonlocal)``, or ``de`` itself without a non-local increment."""
+    if applied is not None:
+        return applied
     return de if de_nonlocal is None else np.maximum(de, de_nonlocal)
 
 

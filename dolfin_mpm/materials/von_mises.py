@@ -45,9 +45,9 @@ class VonMises(RadialReturn):
         overstress = trial.q - (self.sigma_y + self.H * state["eps_p"])
         return 1.5 * np.maximum(overstress, 0.0) / (3.0 * self.G + self.H)
 
-    def record(self, state, de, de_nonlocal, dt):
-        """Accumulate ``eps_p += 2/3 max(de, de_nonlocal)`` (the conventional measure)."""
-        state["eps_p"][:] += (2.0 / 3.0) * applied_increment(de, de_nonlocal)
+    def record(self, state, de, de_nonlocal, dt, applied=None):
+        """Accumulate ``eps_p += 2/3 applied`` (the conventional measure)."""
+        state["eps_p"][:] += (2.0 / 3.0) * applied_increment(de, de_nonlocal, applied)
 
     def tangent(self, trial: Trial, de: np.ndarray, dt: float) -> np.ndarray:
         """Consistent tangent of the return [Pa] (Mandel), ``shape=(n, 6, 6)``."""

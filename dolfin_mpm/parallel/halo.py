@@ -33,6 +33,8 @@ class DistributedAverage:
     that no rank waits for another's rebuild; in between it only loses particles.
     """
 
+    law = property(lambda self: self.average.law)
+
     def __init__(self, average, comm):
         self.average, self.comm = average, comm
         self.halo: Halo | None = None

@@ -1,0 +1,124 @@
+"""The non-local laws: their fixed points are what each law states, and bad input is named.
+
+The laws are iterated here as the step iterates them (the correction of the trial ``q``, mixed
+by Anderson acceleration), on a cloud of points with given trial states; the converged
+increments are then checked against the laws' own statements, written from the end states
+alone: the paper's ``d = A u`` with ``u`` the rate of each end state, the overstress law's
+``d = c <A x>`` with the end states' overstress.
+"""
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from dolfin_mpm.averaging import NonlocalAverage, NonlocalLaw
+from dolfin_mpm.averaging.nonlocal_average import ball_weight
+from dolfin_mpm.explicit.anderson import Anderson
+from dolfin_mpm.materials import DruckerPragerViscoplastic
+from dolfin_mpm.materials.base import Trial
+
+SAND = DruckerPragerViscoplastic(E=1e6, nu=0.3, rho=1500.0, phi=30.0, gamma=1e3, N=1.0)
+DT = 3e-5
+
+
+def cloud(seed=0, n=24):
+    """A lattice of points with trial states around the cone: a band of overstressed points."""
+    rng = np.random.default_rng(seed)
+    g = (np.arange(n) + 0.5) / n
+    x = np.array(np.meshgrid(g, g, indexing="ij")).reshape(2, -1).T
+    p = 1e4 * (1.0 + 0.2 * rng.random(len(x)))
+    band = np.exp(-(((x[:, 1] - 0.5) / 0.08) ** 2))  # overstress peaks along y = 0.5
+    q = SAND.m * p * (0.8 + 0.6 * band + 0.05 * rng.random(len(x)))
+    s = np.zeros((3, 3, len(x)))
+    s[0, 1] = s[1, 0] = q / np.sqrt(3.0)  # pure shear: q = sqrt(3) |s_xy|
+    return x, np.full(len(x), 1.0 / n**2), Trial(p, s, q)
+
+
+def iterate(law, average, trial, steps=400, tol=1e-13):
+    """The law's correction iterated to its fixed point; returns the applied increments."""
+    two_G = np.full(len(trial.q), 2.0 * SAND.G)
+    y = SAND.yield_value(trial)
+    dq, mixer = np.zeros(len(trial.q)), Anderson(5, MPI.COMM_SELF)
+    for _ in range(steps):
+        u = SAND.increment(Trial(trial.p, trial.s, np.maximum(trial.q + dq, 0.0)), {}, DT)
+        d = law.applied(u, dq, two_G)
+        nxt = law.correction(average, u, d, trial.q, two_G, y)
+        if np.linalg.norm(nxt - dq) <= tol * np.linalg.norm(trial.q):
+            return d
+        dq = mixer(dq, nxt)
+    raise AssertionError("the correction did not converge")
+
+
+def rate_of_end_state(trial, d):
+    """``u = c <q / y - 1>`` of the end state ``q = q_trial - 2 G d`` (N = 1), and its overstress."""
+    y = SAND.yield_value(trial)
+    x = np.maximum(trial.q - 2.0 * SAND.G * d, 0.0) / y - 1.0
+    return 1.5 * SAND.gamma * DT * np.maximum(x, 0.0), x
+
+
+@pytest.mark.parametrize("boundary_correction", [False, True])
+def test_paper_law_relaxes_by_the_average_of_the_end_states_rates(boundary_correction):
+    x, volume, trial = cloud()
+    average = NonlocalAverage(0.1, boundary_correction=boundary_correction)
+    average.update(x, volume, np.arange(len(x)))
+    d = iterate(NonlocalLaw("paper"), average, trial)
+    u, _ = rate_of_end_state(trial, d)
+    expected = average(u)
+    assert np.abs(d - expected).max() <= 1e-9 * d.max()
+    # The law acts: the band's points relax by less than their own rate, the flanks by more.
+    assert np.any(u > 1.05 * d) and np.any(d > 1.05 * u)
+
+
+def test_overstress_law_flows_by_the_averaged_overstress():
+    x, volume, trial = cloud(1)
+    average = NonlocalAverage(0.1)
+    average.update(x, volume, np.arange(len(x)))
+    d = iterate(NonlocalLaw("overstress"), average, trial)
+    _, over = rate_of_end_state(trial, d)
+    expected = 1.5 * SAND.gamma * DT * np.maximum(average(over), 0.0)
+    assert np.abs(d - expected).max() <= 1e-9 * d.max()
+    # Elastic neighbours hold the band back: less flow than the local return everywhere.
+    local = SAND.increment(trial, {}, DT)
+    assert d.sum() < local.sum()
+
+
+def test_max_law_is_not_iterated():
+    assert not NonlocalLaw().iterative and NonlocalLaw("paper").iterative
+
+
+@pytest.mark.parametrize("name", ["nonlocal", "overnonlocal", "", None])
+def test_bad_laws_are_named(name):
+    with pytest.raises(ValueError, match="law must be one of"):
+        NonlocalLaw(name)
+    with pytest.raises(ValueError, match="law must be one of"):
+        NonlocalAverage(0.1, law=name)
+
+
+def test_bad_boundary_correction_is_named():
+    with pytest.raises(ValueError, match="boundary_correction"):
+        NonlocalAverage(0.1, boundary_correction="yes")
+
+
+@pytest.mark.parametrize("weight", ["cubic", "constant", "gaussian"])
+def test_boundary_correction_gives_the_missing_weight_to_the_point_itself(weight):
+    n = 60
+    g = (np.arange(n) + 0.5) / n
+    x = np.array(np.meshgrid(g, g, indexing="ij")).reshape(2, -1).T
+    volume = np.full(len(x), 1.0 / n**2)
+    r = 0.1
+    plain, corrected = NonlocalAverage(r, weight), NonlocalAverage(r, weight, boundary_correction=True)
+    for a in (plain, corrected):
+        a.update(x, volume, np.arange(len(x)))
+    # The ball's weight: the lattice's sums about an interior point come within 2 % of it.
+    centre = np.argmin(np.linalg.norm(x - 0.5, axis=1))
+    assert abs(plain._denominator[centre] / ball_weight(weight, r, 2) - 1.0) < 0.02
+    # A constant stays constant; a field that is 1 at a corner point only is averaged into
+    # that corner with the weight its missing three quarters of a ball give it.
+    assert np.allclose(corrected(np.ones(len(x))), 1.0)
+    corner = np.argmin(np.linalg.norm(x, axis=1))
+    e = np.zeros(len(x))
+    e[corner] = 1.0
+    own_share_plain, own_share = plain(e)[corner], corrected(e)[corner]
+    assert own_share > 3.0 * own_share_plain
+    missing = 1.0 - plain._denominator[corner] / ball_weight(weight, r, 2)
+    assert own_share == pytest.approx(missing + own_share_plain * (1.0 - missing), rel=1e-12)
