@@ -117,10 +117,10 @@ def test_halo_is_kept_while_particles_move_less_than_half_the_skin():
     assert average.rebuilds == average.halo_builds  # the pair list with the halo, not in between
 
 
-def silo_run(comm, steps=200, strips=True):
+def silo_run(comm, steps=200, strips=True, law="max"):
     """Global measures of a short, coarse non-local silo discharge on ``comm``."""
     silo = load("demo_silo")
-    solver, gate = silo.build(h=0.025, radius=0.025, comm=comm, strips=strips)
+    solver, gate = silo.build(h=0.025, radius=0.025, comm=comm, strips=strips, law=law)
     solver.bcs = [bc for bc in solver.bcs if bc is not gate]  # open at once: particles cross ranks
     for _ in range(steps):
         solver.step()
@@ -136,23 +136,27 @@ def silo_run(comm, steps=200, strips=True):
 
 
 @functools.cache
-def serial_silo_run():
-    return silo_run(MPI.COMM_SELF)
+def serial_silo_run(law="max"):
+    return silo_run(MPI.COMM_SELF, law=law)
 
 
-@pytest.mark.parametrize("strips", [True, False])
-def test_silo_on_all_ranks_equals_the_serial_run(strips):
+@pytest.mark.parametrize("strips, law", [(True, "max"), (False, "max"), (False, "paper")])
+def test_silo_on_all_ranks_equals_the_serial_run(strips, law):
     """Strips of equal fill; DOLFINx's partition, across which the particles fall."""
-    parallel, serial = silo_run(comm, strips=strips), serial_silo_run()
+    parallel, serial = silo_run(comm, strips=strips, law=law), serial_silo_run(law)
     assert parallel["discharged"] > 0.0
     if strips and comm.size == 2:  # cut at the axis of a symmetric flow: (almost) no crossing
         assert parallel["migrated"] < 0.01 * parallel["particles"]
     else:
         assert comm.size == 1 or parallel["migrated"] > 0
     assert parallel["particles"] == serial["particles"]
-    assert parallel["iterations"] == serial["iterations"]
+    if law == "max":
+        assert parallel["iterations"] == serial["iterations"]
+    # The paper's law: the sums' order on two ranks moves a step's last iterate by one now and
+    # then, and its loop stops within its tolerance of the fixed point (docs/numerics.md).
+    rel = 1e-8 if law == "max" else 1e-3
     for key in ("discharged", "kinetic", "e_vp_bar_max"):
-        assert parallel[key] == pytest.approx(serial[key], rel=1e-8), key
+        assert parallel[key] == pytest.approx(serial[key], rel=rel), key
 
 
 def test_silo_demo_on_all_ranks_records_what_the_serial_run_does(tmp_path):
