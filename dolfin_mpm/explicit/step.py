@@ -214,42 +214,42 @@ class Constitutive:
             #: state lags a step, as an explicit scheme may, and stays fixed in the loop's iterates).
             self.apart = P.state["free_volume"] > 0.0
 
-    def increments(
-        self, P: Particles, L: np.ndarray, dt: float, dq: np.ndarray | None = None
-    ) -> tuple[list, np.ndarray]:
-        """Each group's trial state and every particle's increment ``de``, ``shape=(n,)``.
+    def trials(self, P: Particles, L: np.ndarray, dt: float) -> list:
+        """Each group's elastic predictor."""
+        return [material.trial(P.sigma[idx], L[idx], dt) for material, idx, _ in self.groups]
+
+    def increments(self, P: Particles, trials: list, dt: float, dq: np.ndarray | None = None) -> np.ndarray:
+        """Every particle's increment ``de`` from the trial states, ``shape=(n,)``.
 
         ``dq`` [Pa] ``shape=(n,)``: a non-local law's correction of the trial ``q`` that each
-        return takes (:mod:`dolfin_mpm.averaging.law`), set to 0 in place at an apex, where a
-        point is stress free whatever its neighbours; ``None``: the local returns.
+        return takes (:mod:`dolfin_mpm.averaging.law`); ``None``: the local returns.
         """
-        trials, parts = [], []
-        for material, idx, state in self.groups:
-            trial = material.trial(P.sigma[idx], L[idx], dt)
-            trials.append(trial)
+        parts = []
+        for (material, idx, state), trial in zip(self.groups, trials):
             if dq is not None:
-                shift = dq[idx]
-                if hasattr(material, "at_apex"):
-                    shift[material.at_apex(trial)] = 0.0
-                    dq[idx] = shift
-                trial = Trial(trial.p, trial.s, np.maximum(trial.q + shift, 0.0))
+                trial = Trial(trial.p, trial.s, np.maximum(trial.q + dq[idx], 0.0))
             parts.append(material.increment(trial, state, dt))
-        return trials, self._gather(P, parts)
+        return self._gather(P, parts)
 
     def law_fields(self, P: Particles, trials: list, overstress: bool) -> tuple[np.ndarray, ...]:
         """What a non-local law reads of the trial states, each ``shape=(n,)``.
 
-        Trial ``q`` [Pa], ``2 G`` [Pa], the points at an apex (stress free whatever their
-        neighbours: no correction) and, for the overstress law, the yield value of ``q`` [Pa].
+        Trial ``q`` [Pa], the points at an apex (stress free whatever their neighbours: no
+        correction) and, for the overstress law, the yield value of ``q`` [Pa].
         """
         groups = [(m, t) for (m, _, _), t in zip(self.groups, trials)]
         q = self._gather(P, [t.q for t in trials])
-        two_G = self._gather(P, [np.full(len(t.q), 2.0 * m.G) for m, t in groups])
         apex = self._gather(
             P, [m.at_apex(t) if hasattr(m, "at_apex") else np.zeros(len(t.q)) for m, t in groups]
         )
         y = self._gather(P, [m.yield_value(t) for m, t in groups]) if overstress else None
-        return q, two_G, apex > 0.0, y
+        return q, apex > 0.0, y
+
+    def two_G(self, P: Particles) -> np.ndarray:
+        """``2 G`` of each particle's material [Pa], ``shape=(n,)``."""
+        if len(self.materials) == 1:
+            return np.full(len(P), 2.0 * self.materials[0].G)
+        return 2.0 * np.array([m.G for m in self.materials])[P.material]
 
     def _gather(self, P: Particles, parts: list) -> np.ndarray:
         """One particle array from the groups' parts."""
@@ -336,23 +336,26 @@ def advance(model: Model, state: State, timer: Timer) -> None:
             dq_in, weight = P.state[CORRECTION].copy(), None
     constitutive = Constitutive(model.materials, P)
     applied = None
+    if law is not None and law.iterative:
+        two_G = constitutive.two_G(P)
     for k in range(1, (1 if average is None else options.fixed_point_max_iter) + 1):
         v_node, a_node, f_contact, reactions = nodal_solve(model, nodal, R_node, dt)
         timer.lap("nodal_solve")
         v, v_grid, L, v_node = g2p(model, P, basis, nodal, v_node, a_node, dt)
         timer.lap("g2p")
+        trials = constitutive.trials(P, L, dt)
         if law is not None and law.iterative:
-            dq = dq_in.copy()
-            trials, de = constitutive.increments(P, L, dt, dq)
+            q_trial, apex, y = constitutive.law_fields(P, trials, law.name == "overstress")
+            dq = np.where(apex, 0.0, dq_in)
+            de = constitutive.increments(P, trials, dt, dq)
             timer.lap("return_mapping")
-            q_trial, two_G, apex, y = constitutive.law_fields(P, trials, law.name == "overstress")
             applied = de_bar = law.applied(de, dq, two_G)
             dq_next = law.correction(average, de, applied, q_trial, two_G, y)
             dq_next[apex] = 0.0
             timer.lap("averaging")
             sigma = constitutive.stresses(P, trials, applied, None)
         else:
-            trials, de = constitutive.increments(P, L, dt)
+            de = constitutive.increments(P, trials, dt)
             timer.lap("return_mapping")
             de_bar = None
             if average is not None:
