@@ -36,7 +36,8 @@ import dolfin_mpm as dm  # import first: it loads DOLFINx's libraries
 import numpy as np
 from mpi4py import MPI
 
-from dolfin_mpm.post.measure import bin_sums, fwhm, rise_width
+from dolfin_mpm.averaging import LAWS, WEIGHTS
+from dolfin_mpm.post.measure import bin_sums, fwhm, jump_width, rise_width
 from dolfin_mpm.post.plotting import figure
 
 SAND = {"E": 1e6, "nu": 0.3, "rho": 1500.0, "phi": 30.0, "gamma": 1e3, "N": 1.0}  # the paper's
@@ -171,10 +172,17 @@ def discharged_mass(solver) -> float:
     return solver.comm.allreduce(float(P.mass[P.x[:, 1] < 0.0].sum()) + solver.sinks["discharged"].mass)
 
 
+#: Heights [m] of the speed profiles across the bands: just above the outlet edge (the band
+#: that rises from it along the stagnant zone) and at mid-height (the band between the material
+#: sliding down the wall and the core).
+BAND_HEIGHTS = {"edge": 0.01, "wall": 0.15}
+
+
 class Monitor:
     """What a run records at each call: the discharged mass; every ``xdmf_every``-th call the
     XDMF output; from ``t_profile`` on, the profiles of e_vp_bar and v_y across the silo at
-    the height ``y_c`` (a strip of one cell, bins of half a cell), summed for time averages.
+    the height ``y_c`` and of the speed at :data:`BAND_HEIGHTS` (strips of one cell, bins of
+    half a cell), summed for time averages.
     """
 
     def __init__(self, output, h, width, y_c, t_profile, xdmf_every=5):
@@ -182,6 +190,7 @@ class Monitor:
         self.h, self.y_c, self.t_profile = h, y_c, t_profile
         self.edges = np.linspace(0.0, width, round(2 * width / h) + 1)
         self.sums = np.zeros((3, len(self.edges) - 1))  # count, e_vp_bar, v_y
+        self.band_sums = {name: np.zeros((2, len(self.edges) - 1)) for name in BAND_HEIGHTS}  # count, speed
 
     def write(self, solver):
         if self.output is not None and len(self.t) % self.xdmf_every == 0:
@@ -193,6 +202,10 @@ class Monitor:
             strip = np.abs(P.x[:, 1] - self.y_c) < 0.5 * self.h
             e_bar = P.state["eps_vp_rate_nonlocal"]
             self.sums += bin_sums(P.x[strip, 0], self.edges, e_bar[strip], P.v[strip, 1])
+            speed = np.hypot(P.v[:, 0], P.v[:, 1])
+            for name, y in BAND_HEIGHTS.items():
+                strip = np.abs(P.x[:, 1] - y) < 0.5 * self.h
+                self.band_sums[name] += bin_sums(P.x[strip, 0], self.edges, speed[strip])
 
     def profiles(self, comm):
         """Bin centres [m] and the time-averaged e_vp_bar [1/s] and v_y [m/s] in each bin."""
@@ -200,6 +213,16 @@ class Monitor:
         seen = count > 0  # bins no particle visited are left out
         x = 0.5 * (self.edges[1:] + self.edges[:-1])
         return x[seen], e[seen] / count[seen], v[seen] / count[seen]
+
+    def band_profiles(self, comm) -> dict:
+        """The time-averaged speed [m/s] across each band's height: ``{name: (x, speed)}``."""
+        x = 0.5 * (self.edges[1:] + self.edges[:-1])
+        out = {}
+        for name, sums in self.band_sums.items():
+            count, speed = comm.allreduce(sums, MPI.SUM)
+            seen = count > 0
+            out[name] = (x[seen], speed[seen] / count[seen])
+        return out
 
 
 def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, height=0.3, outlet=0.1,
@@ -254,6 +277,7 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, heig
     P, comm = solver.particles, solver.comm
     t, mass = np.array(monitor.t), np.array(monitor.mass)
     x_c, e_c, v_c = monitor.profiles(comm)
+    bands = monitor.band_profiles(comm)
     fp = solver.fixed_point
     e_vp_bar = P.state["eps_vp_rate_nonlocal"]
     gather = lambda a: np.concatenate(comm.allgather(a))  # noqa: E731  (all ranks' particles)
@@ -274,6 +298,8 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, heig
         "profile_x": x_c,
         "profile_e_vp_bar": e_c,
         "profile_v_y": v_c,
+        **{f"profile_speed_{name}": np.array(xs) for name, xs in bands.items()},  # (x, speed)
+        **velocity_bands(bands, width),
         "y_c": y_c,
         "x": gather(P.x[:, :2]),  # the particles at t_end
         "e_vp_bar": gather(e_vp_bar),
@@ -312,6 +338,22 @@ def stagnant_zones(solver, width=0.2, outlet=0.1, h=0.01) -> dict:
         "base_slip": median(gather(np.abs(v[base, 0]))),
         "outlet_angle": float(np.mean(gather(angle))) if comm.allreduce(angle.size) else float("nan"),
     }
+
+
+def velocity_bands(bands: dict, width=0.2) -> dict:
+    """Band widths [m] from the time-averaged speed across the left half at :data:`BAND_HEIGHTS`.
+
+    ``edge_band_width`` and ``wall_band_width``: the 10-90 % width of the steepest jump of the
+    speed (:func:`dolfin_mpm.post.measure.jump_width`) across the left half at the height of
+    each, taken horizontally (the edge band crosses that line obliquely, the same on every
+    mesh); ``*_band_x``: where the jump is [m].
+    """
+    out = {}
+    for name, (x, speed) in bands.items():
+        left = x < 0.5 * width
+        w, at = jump_width(x[left], speed[left])
+        out[f"{name}_band_width"], out[f"{name}_band_x"] = w, at
+    return out
 
 
 def band_widths(result, width=0.2, y_band=0.15, y_edge=0.01) -> dict:
@@ -358,6 +400,7 @@ def beverloo(outlet=0.1, rho=SAND["rho"], C=(0.58, 1.5)):
 # ## Studies: each run is stored once and reused
 
 H_STUDY = 0.005  # the mesh of the radius and weight studies [m]
+MESHES = (0.01, 0.005, 0.0025)  # the meshes of the mesh studies [m]
 STUDIES = {
     "meshes": [dict(h=h, radius=r) for r in (0.0, 5e-3) for h in (0.01, 0.005, 0.0025)],
     "radius": [dict(h=H_STUDY, radius=r) for r in (0.0, 2.5e-3, 5e-3, 10e-3)],
@@ -365,8 +408,17 @@ STUDIES = {
     "friction": [dict(h=0.01, wall_friction=a) for a in (0.0, 10.0, 20.0, 30.0)],
     "shift": [dict(h=h, radius=0.0, shift=s) for h in (0.01, 0.005) for s in (0.0, 0.5)],
     "edges": [dict(h=0.01, radius=0.0, edge_cell=e) for e in (None, 0.005, 0.0025)],
+    # The non-local laws with the positive-definite weight beside the local model.
+    "laws": [
+        *(dict(h=h, radius=0.0) for h in MESHES),
+        *(dict(h=h, radius=5e-3, weight="wendland", law=law) for law in ("max", "paper") for h in MESHES),
+        *(dict(h=h, radius=10e-3, weight="wendland", law="paper") for h in MESHES),
+    ],
 }
-ARRAYS = ("t", "discharged", "x", "e_vp_bar", "profile_x", "profile_e_vp_bar", "profile_v_y")
+ARRAYS = (
+    "t", "discharged", "x", "e_vp_bar", "profile_x", "profile_e_vp_bar", "profile_v_y",
+    *(f"profile_speed_{name}" for name in BAND_HEIGHTS),
+)  # fmt: skip
 
 
 def run_key(
@@ -386,7 +438,7 @@ def stored_run(folder: Path, **params) -> dict | None:
         return None
     result = json.loads((runs / f"{key}.json").read_text())
     with np.load(runs / f"{key}.npz") as arrays:
-        result.update({name: arrays[name] for name in ARRAYS})
+        result.update({name: arrays[name] for name in ARRAYS if name in arrays})  # older runs: fewer
     return result
 
 
@@ -700,9 +752,84 @@ def report(folder: Path, path: Path) -> str:
         if name == "radius":
             plot_radius(runs, images / "silo_radius.png")
             out += ["![flow rate against r](images/silo_radius.png)", ""]
+        if name == "laws":
+            out += law_lines(runs)
+            paper = [r for r in runs if r.get("law") == "paper" and r["radius"] == 5e-3]
+            if paper:
+                plot_maps(paper, images / "silo_maps_paper.png")
+                out += ["![e_vp_bar maps, the paper's law](images/silo_maps_paper.png)", ""]
     text = "\n".join(out)
     path.write_text(text)
+    every = {run_key(**p): r for name, todo in STUDIES.items() for p, r in zip(todo, stored[name].values())}
+    write_json([r for r in every.values() if r is not None], path.with_suffix(".json"))
     return text
+
+
+#: What ``docs/silo.json`` gives of each run (lengths in m, the flow rate in kg/s/m).
+JSON_FIELDS = (
+    "h", "radius", "weight", "wall_friction", "law", "shift", "edge_cell", "flow_rate",
+    "edge_band_width", "wall_band_width", "channel_width", "mean_iterations", "max_iterations",
+    "unconverged", "particles", "steps",
+)  # fmt: skip
+
+
+def write_json(runs, path: Path) -> None:
+    """The stored runs as ``{"default_law", "runs": [...]}`` in ``path`` (:data:`JSON_FIELDS`).
+
+    ``law`` is that of the non-local runs (``"local"`` for r = 0); the velocity band widths are
+    given for the runs that recorded the speed across the bands.
+    """
+    rows = []
+    for r in runs:
+        row = {"channel_width": band_widths(r)["channel"], **r}
+        row["law"] = r.get("law", "max") if r["radius"] > 0 else "local"
+        rows.append({k: row[k] for k in JSON_FIELDS if row.get(k) is not None})
+    path.write_text(json.dumps({"default_law": "max", "runs": rows}, indent=1))
+
+
+def law_lines(runs) -> list[str]:
+    """Lines of Markdown: the laws' table (velocity band widths) and their spreads over the meshes."""
+    out = [
+        "| law | r [mm] | weight | h [mm] | flow rate [kg/s/m] | edge band [mm] | wall band [mm] "
+        "| iterations/step | unconverged steps |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    groups = {}
+    for r in runs:
+        law = r.get("law", "max") if r["radius"] > 0 else "local"
+        groups.setdefault((law, r["radius"], r["weight"]), []).append(r)
+        out.append(
+            f"| {law} | {1e3 * r['radius']:g} | {r['weight']} | {1e3 * r['h']:g} | {r['flow_rate']:.1f} "
+            f"| {1e3 * r.get('edge_band_width', math.nan):.1f} "
+            f"| {1e3 * r.get('wall_band_width', math.nan):.1f} "
+            f"| {r['mean_iterations']:.2f} | {r['unconverged']} |"
+        )
+    out += [
+        "",
+        "edge band, wall band: the 10-90 % width of the steepest jump of the time-averaged speed "
+        "(t = 0.2-0.25 s) across the left half at y = 1 cm (the band that rises from the outlet "
+        "edge along the stagnant zone, crossed obliquely) and at y = 15 cm (between the material "
+        "sliding down the wall and the core), bins of half a cell; the jump ends where the speed's "
+        "slope has fallen to a tenth of its steepest (`dolfin_mpm.post.measure.jump_width`).",
+        "",
+    ]
+    for (law, radius, weight), rs in groups.items():
+        if len(rs) > 1:
+            fine = [r for r in rs if r["h"] <= 0.005]
+            spread = lambda key, sel=rs: _spread([r[key] for r in sel])  # noqa: E731
+            meshes = " / ".join(f"{1e3 * r['h']:g}" for r in rs)
+            out.append(
+                f"- {law}, r = {1e3 * radius:g} mm ({weight}): spread over h = "
+                f"{meshes} mm: flow rate {spread('flow_rate')}, "
+                f"edge band {spread('edge_band_width')}, wall band {spread('wall_band_width')}"
+                + (
+                    f"; over h <= 5 mm: flow rate {spread('flow_rate', fine)}, edge band "
+                    f"{spread('edge_band_width', fine)}, wall band {spread('wall_band_width', fine)}"
+                    if len(fine) > 1
+                    else ""
+                )
+            )
+    return [*out, ""]
 
 
 def main():
@@ -710,7 +837,8 @@ def main():
     parser.add_argument("--study", choices=[*STUDIES, "all"], help="run a study instead of one run")
     parser.add_argument("--h", type=float, default=0.01, help="cell size [m]")
     parser.add_argument("--radius", type=float, default=5e-3, help="non-local radius r [m]")
-    parser.add_argument("--weight", default="cubic", choices=["cubic", "constant", "gaussian"])
+    parser.add_argument("--weight", default="cubic", choices=list(WEIGHTS))
+    parser.add_argument("--law", default="max", choices=list(LAWS), help="the non-local law")
     parser.add_argument("--wall-friction", type=float, default=20.0, help="wall friction angle [deg]")
     parser.add_argument(
         "--shift", type=float, default=0.0, help="mesh shifted sideways by this part of a cell"
@@ -726,6 +854,7 @@ def main():
                 weight=args.weight,
                 wall_friction=args.wall_friction,
                 shift=args.shift,
+                law=args.law,
             )
         ]
     elif args.study is None:

@@ -1,6 +1,7 @@
 """The demos, run small: each checks the number its Verification section prints."""
 
 import importlib.util
+import json
 from pathlib import Path
 
 import numpy as np
@@ -61,6 +62,24 @@ def test_silo_quick_discharge(tmp_path):
     widths = demo.band_widths(r)
     assert 0.0 < widths["edge"] < 0.1 and 0.0 < widths["edge_x"] < 0.1
     assert (tmp_path / "particles.xdmf").exists()
+
+
+def test_silo_quick_paper_law_and_its_report(tmp_path):
+    """The paper's law converges; the speed across the bands gives widths; the JSON has them."""
+    demo = load("demo_silo")
+    quick = dict(h=0.025, t_end=0.1, t_settle=0.01, progress=False)
+    runs = [demo.run(radius=0.0, **quick), demo.run(radius=0.02, weight="wendland", law="paper", **quick)]
+    assert runs[1]["unconverged"] == 0 and runs[1]["mean_iterations"] > 1.0
+    for r in runs:
+        for band in ("edge", "wall"):
+            assert 0.0 < r[f"{band}_band_width"] < 0.1 and 0.0 < r[f"{band}_band_x"] < 0.1
+    lines = demo.law_lines(runs)
+    assert any(line.startswith("| paper | 20 | wendland | 25 |") for line in lines)
+    demo.write_json(runs, tmp_path / "silo.json")
+    data = json.loads((tmp_path / "silo.json").read_text())
+    assert data["default_law"] == "max" and [r["law"] for r in data["runs"]] == ["local", "paper"]
+    assert data["runs"][1]["edge_band_width"] == runs[1]["edge_band_width"]
+    assert {"h", "radius", "weight", "wall_friction", "flow_rate", "channel_width"} <= set(data["runs"][0])
 
 
 def test_silo_with_cells_refined_at_the_outlet_edges():

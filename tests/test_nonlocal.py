@@ -13,6 +13,7 @@ PAPER_WEIGHTS = {
     "cubic": lambda s: 1.0 + s**2 * (2.0 * s - 3.0),
     "constant": lambda s: np.ones_like(s),
     "gaussian": lambda s: np.exp(-2.5 * s**2),
+    "wendland": lambda s: (1.0 - s) ** 4 * (1.0 + 4.0 * s),
 }
 
 

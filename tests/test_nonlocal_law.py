@@ -59,7 +59,7 @@ def rate_of_end_state(trial, d):
 @pytest.mark.parametrize("boundary_correction", [False, True])
 def test_paper_law_relaxes_by_the_average_of_the_end_states_rates(boundary_correction):
     x, volume, trial = cloud()
-    average = NonlocalAverage(0.1, boundary_correction=boundary_correction)
+    average = NonlocalAverage(0.1, "wendland", boundary_correction=boundary_correction)
     average.update(x, volume, np.arange(len(x)))
     d = iterate(NonlocalLaw("paper"), average, trial)
     u, _ = rate_of_end_state(trial, d)
@@ -71,7 +71,7 @@ def test_paper_law_relaxes_by_the_average_of_the_end_states_rates(boundary_corre
 
 def test_overstress_law_flows_by_the_averaged_overstress():
     x, volume, trial = cloud(1)
-    average = NonlocalAverage(0.1)
+    average = NonlocalAverage(0.1, "wendland")
     average.update(x, volume, np.arange(len(x)))
     d = iterate(NonlocalLaw("overstress"), average, trial)
     _, over = rate_of_end_state(trial, d)
@@ -94,12 +94,34 @@ def test_bad_laws_are_named(name):
         NonlocalAverage(0.1, law=name)
 
 
+@pytest.mark.parametrize("weight", ["cubic", "constant", "gaussian"])
+def test_iterative_laws_take_the_positive_definite_weight_alone(weight):
+    with pytest.raises(ValueError, match="needs the positive-definite weight 'wendland'"):
+        NonlocalAverage(0.1, weight, law="paper")
+
+
+@pytest.mark.parametrize("spacing", [0.5, 0.25])
+def test_only_wendlands_average_keeps_alternating_fields_positive(spacing):
+    """The least eigenvalue of the average on a lattice of spacing ``spacing`` r: why the laws need it."""
+    n = 16
+    g = spacing * np.arange(n)
+    x = np.array(np.meshgrid(g, g, indexing="ij")).reshape(2, -1).T
+    least = {}
+    for weight in ("cubic", "gaussian", "constant", "wendland"):
+        average = NonlocalAverage(1.0, weight)
+        average.update(x, np.ones(len(x)), np.arange(len(x)))
+        A = np.column_stack([average(e) for e in np.eye(len(x))])
+        least[weight] = np.linalg.eigvals(A).real.min()
+    assert least["wendland"] > 0.0
+    assert all(least[w] < 0.0 for w in ("cubic", "gaussian", "constant")), least
+
+
 def test_bad_boundary_correction_is_named():
     with pytest.raises(ValueError, match="boundary_correction"):
         NonlocalAverage(0.1, boundary_correction="yes")
 
 
-@pytest.mark.parametrize("weight", ["cubic", "constant", "gaussian"])
+@pytest.mark.parametrize("weight", ["cubic", "constant", "gaussian", "wendland"])
 def test_boundary_correction_gives_the_missing_weight_to_the_point_itself(weight):
     n = 60
     g = (np.arange(n) + 0.5) / n

@@ -152,18 +152,27 @@ def test_a_wall_that_holds_no_node_is_named(tmp_path):
         scenario.build(cfg)
 
 
+def test_an_iterative_law_with_another_weight_is_named():
+    with pytest.raises(
+        scenario.ScenarioError, match=r'nonlocal\.law: "paper" needs the positive-definite weight'
+    ):
+        scenario.load(DEMOS / "silo.toml", ['nonlocal.law="paper"'])
+
+
 @pytest.mark.parametrize("law", ["max", "paper", "overstress"])
 def test_silo_scenario_is_the_silo_demo(tmp_path, law):
     """The silo file, coarsened with --set, takes the demo's steps bit for bit (settling, opening)."""
     h, r = 0.025, 0.02
     rows = math.ceil(0.05 / h) + 1  # as the demo lays out its grid
-    reference = load("demo_silo").run(h=h, radius=r, t_end=0.02, t_settle=0.01, progress=False, law=law)
-    if law != "overstress":  # its loop leaves steps unconverged (docs/numerics.md): not yet solved
-        assert reference["unconverged"] == 0
+    weight = "cubic" if law == "max" else "wendland"
+    reference = load("demo_silo").run(
+        h=h, radius=r, weight=weight, t_end=0.02, t_settle=0.01, progress=False, law=law
+    )
+    assert reference["unconverged"] == 0
     overrides = [
         f"mesh.lower=[0.0, {-rows * h!r}]", f"mesh.upper=[0.2, {0.3 + h!r}]",
         f"mesh.cells=[8, {rows + 13}]", f"nonlocal.radius={r}", "time.start=-0.01", "time.end=0.02",
-        "output.xdmf=false", "output.figures=false", f'nonlocal.law="{law}"',
+        "output.xdmf=false", "output.figures=false", f'nonlocal.law="{law}"', f'nonlocal.weight="{weight}"',
     ]  # fmt: skip
     sim = scenario.build(scenario.load(DEMOS / "silo.toml", overrides))
     Runner(sim, tmp_path, progress=False).run()

@@ -544,6 +544,12 @@ def _nonlocal(c: _Checker, t: dict | None, materials: dict) -> dict:
         "law": c.value(t, "nonlocal", "law", "string", "max", check=LAWS),
         "boundary_correction": c.value(t, "nonlocal", "boundary_correction", "bool", False),
     }
+    if n["law"] not in ("max", None) and n["weight"] not in ("wendland", None):
+        c.fail(
+            "nonlocal.law",
+            f'"{n["law"]}" needs the positive-definite weight "wendland" (nonlocal.weight), '
+            f'got "{n["weight"]}"',
+        )
     models = [m["model"] for m in materials.values()]
     if n["radius"] > 0.0 and not any(MODELS[m][0].plastic for m in models if m in MODELS):
         plastic = [name for name, (cls, _) in MODELS.items() if cls.plastic]

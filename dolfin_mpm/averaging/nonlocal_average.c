@@ -12,7 +12,7 @@
 #include <math.h>
 #include <stdint.h>
 
-enum { CUBIC = 0, CONSTANT = 1, GAUSSIAN = 2 };
+enum { CUBIC = 0, CONSTANT = 1, GAUSSIAN = 2, WENDLAND = 3 };
 
 /* w(s) for s^2 = s2 < 1. */
 static inline double weight(int32_t kind, double s2)
@@ -24,6 +24,11 @@ static inline double weight(int32_t kind, double s2)
   }
   if (kind == CONSTANT)
     return 1.0;
+  if (kind == WENDLAND)
+  {
+    const double s = sqrt(s2), t = (1.0 - s) * (1.0 - s);
+    return t * t * (1.0 + 4.0 * s);
+  }
   return exp(-2.5 * s2);
 }
 
@@ -78,10 +83,12 @@ void pair_weights(int64_t runs, const int32_t *row, const int64_t *begin, const 
   if (gdim == 2)
     *runs_near = kind == CUBIC      ? WEIGHTS_OF(CUBIC, 2)
                  : kind == CONSTANT ? WEIGHTS_OF(CONSTANT, 2)
+                 : kind == WENDLAND ? WEIGHTS_OF(WENDLAND, 2)
                                     : WEIGHTS_OF(GAUSSIAN, 2);
   else
     *runs_near = kind == CUBIC      ? WEIGHTS_OF(CUBIC, 3)
                  : kind == CONSTANT ? WEIGHTS_OF(CONSTANT, 3)
+                 : kind == WENDLAND ? WEIGHTS_OF(WENDLAND, 3)
                                     : WEIGHTS_OF(GAUSSIAN, 3);
 #undef WEIGHTS_OF
 }

@@ -234,8 +234,8 @@ class Constitutive:
     def law_fields(self, P: Particles, trials: list, overstress: bool) -> tuple[np.ndarray, ...]:
         """What a non-local law reads of the trial states, each ``shape=(n,)``.
 
-        Trial ``q`` [Pa], the points at an apex (stress free whatever their neighbours: no
-        correction) and, for the overstress law, the yield value of ``q`` [Pa].
+        Trial ``q`` [Pa], the points at an apex (stress free whatever their neighbours) and,
+        for the overstress law, the yield value of ``q`` [Pa].
         """
         groups = [(m, t) for (m, _, _), t in zip(self.groups, trials)]
         q = self._gather(P, [t.q for t in trials])
@@ -346,12 +346,16 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         trials = constitutive.trials(P, L, dt)
         if law is not None and law.iterative:
             q_trial, apex, y = constitutive.law_fields(P, trials, law.name == "overstress")
-            dq = np.where(apex, 0.0, dq_in)
+            dq = dq_in
             de = constitutive.increments(P, trials, dt, dq)
             timer.lap("return_mapping")
+            # A point at an apex is stress free whatever its neighbours: its rate and what the
+            # stress applies are what it absorbs, q_trial / 2G; its correction waits, untested,
+            # for the point to leave the apex (points may cross it from one iterate to the next).
+            de[apex] = q_trial[apex] / two_G[apex]
             applied = de_bar = law.applied(de, dq, two_G)
+            applied[apex] = de[apex]
             dq_next = law.correction(average, de, applied, q_trial, two_G, y)
-            dq_next[apex] = 0.0
             timer.lap("averaging")
             sigma = constitutive.stresses(P, trials, applied, None)
         else:
@@ -372,7 +376,7 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         timer.lap("internal_force")
         sums = [(R - R_in) @ (R - R_in), R @ R]
         if applied is not None:
-            change = dq_next - dq
+            change = np.where(apex, 0.0, dq_next - dq)
             sums += [change @ change, q_trial @ q_trial]
         norms = np.sqrt(comm.allreduce(np.array(sums), MPI.SUM))
         tol = options.fixed_point_tol
