@@ -829,7 +829,38 @@ def law_lines(runs) -> list[str]:
                     else ""
                 )
             )
+    out += ["", *claim_lines(groups)]
     return [*out, ""]
+
+
+def claim_lines(groups) -> list[str]:
+    """Whether a law keeps the paper's claim on the stored runs: lines of Markdown.
+
+    The goal: on h = 5, 2.5 and 1.25 mm, band widths within 20 % of each other (largest /
+    smallest - 1), flow rates within 5 %, every step converged.
+    """
+    out = []
+    for (law, radius, weight), rs in groups.items():
+        if law == "local":
+            continue
+        fine = {round(1e5 * r["h"]): r for r in rs if r["h"] <= 0.005 + 1e-12}
+        lacking = [f"{h / 100:g}" for h in (500, 250, 125) if h not in fine]
+        converged = all(r["unconverged"] == 0 for r in rs)
+        within = len(fine) > 1 and all(
+            max(v) / min(v) - 1.0 <= goal
+            for key, goal in (("edge_band_width", 0.2), ("wall_band_width", 0.2), ("flow_rate", 0.05))
+            for v in [[r[key] for r in fine.values()]]
+        )
+        verdict = "meets" if within and converged and not lacking else "does not meet"
+        why = [f"no run on h = {', '.join(lacking)} mm"] if lacking else []
+        why += [] if converged else [f"{sum(r['unconverged'] for r in rs)} unconverged steps"]
+        why += [] if within or len(fine) < 2 else ["widths or flow rates beyond the goal"]
+        out.append(
+            f"- {law}, r = {1e3 * radius:g} mm ({weight}) {verdict} the goal "
+            f"(bands within 20 %, flow rate within 5 % on h = 5 / 2.5 / 1.25 mm, every step converged)"
+            + (f": {'; '.join(why)}." if why else ".")
+        )
+    return out
 
 
 def main():
