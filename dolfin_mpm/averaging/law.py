@@ -39,7 +39,10 @@ constant weight ``lambda_min < 0`` (-0.04, -0.03, -0.33 on a lattice of spacing 
 where ``a`` is large (near free surfaces ``y = m p -> 0``; ``a`` ~ 30 in the silo's fill) the
 pass grows those fields: the silo on h = 5 mm with the cubic weight left 1584 of 4576 steps
 unconverged. Wendland's weight is positive definite (``lambda_min > 0``), and the laws take it
-alone (:data:`dolfin_mpm.averaging.nonlocal_average.WEIGHTS`).
+alone (:data:`dolfin_mpm.averaging.nonlocal_average.WEIGHTS`). Its ``lambda_min`` falls towards
+0 as r spans more particles (0.20, 0.026, 0.005 at 2, 3, 4 spacings), and the contraction
+approaches 1: with r of 4 spacings (r = 10 mm on the silo's 5 mm mesh) the loop stalls on the
+changes of the active set and leaves steps unconverged (807 of 4576; ``docs/numerics.md``).
 
 The over-non-local mix ``d = m A u + (1 - m) u``, ``m > 1`` (Vermeer & Brinkgreve 1994), is
 not among them: written the same way its iteration stalls at a relative change of 1e-2,
