@@ -89,7 +89,8 @@ def test_locate_cheap_path_and_search(unit_grid):
     fresh, _ = locate(unit_grid, x2, np.full(len(x), -1, np.int32))
     outside = (x2[:, 0] > 1) | (x2[:, 1] < 0)
     assert np.all(moved[outside] == -1)
-    lam = dm.core.locate.barycentric(unit_grid, x2[~outside], fresh[~outside])
+    lam, inside = dm.core.locate.barycentric(unit_grid, x2[~outside], fresh[~outside])
+    assert inside.all()
     assert np.all(lam.min(axis=0) >= -1e-12) and np.all(N[:, ~outside].min(axis=0) >= -1e-12)
 
 

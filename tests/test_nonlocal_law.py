@@ -133,7 +133,7 @@ def test_boundary_correction_gives_the_missing_weight_to_the_point_itself(weight
         a.update(x, volume, np.arange(len(x)))
     # The ball's weight: the lattice's sums about an interior point come within 2 % of it.
     centre = np.argmin(np.linalg.norm(x - 0.5, axis=1))
-    assert abs(plain._denominator[centre] / ball_weight(weight, r, 2) - 1.0) < 0.02
+    assert abs(plain.denominator[centre] / ball_weight(weight, r, 2) - 1.0) < 0.02
     # A constant stays constant; a field that is 1 at a corner point only is averaged into
     # that corner with the weight its missing three quarters of a ball give it.
     assert np.allclose(corrected(np.ones(len(x))), 1.0)
@@ -142,5 +142,5 @@ def test_boundary_correction_gives_the_missing_weight_to_the_point_itself(weight
     e[corner] = 1.0
     own_share_plain, own_share = plain(e)[corner], corrected(e)[corner]
     assert own_share > 3.0 * own_share_plain
-    missing = 1.0 - plain._denominator[corner] / ball_weight(weight, r, 2)
+    missing = 1.0 - plain.denominator[corner] / ball_weight(weight, r, 2)
     assert own_share == pytest.approx(missing + own_share_plain * (1.0 - missing), rel=1e-12)

@@ -51,6 +51,7 @@ _SIGNATURES = {
         _OFFSET, _INDEX, _OFFSET, _INDEX, _REAL,
     ),
     "pair_apply": (ctypes.c_int64, ctypes.c_int64, _INDEX, _OFFSET, _INDEX, _REAL, _REAL, _REAL),
+    "pair_apply2": (ctypes.c_int64, ctypes.c_int64, _INDEX, _OFFSET, _INDEX, _REAL, _REAL, _REAL, _REAL, _REAL),
     "pair_search": (
         ctypes.c_int64, ctypes.c_int32, _REAL, ctypes.c_double, _REAL, ctypes.c_double, _OFFSET,
         ctypes.c_int64, _INDEX, _OFFSET, _INDEX, _OFFSET, _INDEX, _OFFSET, _OFFSET,
@@ -296,11 +297,7 @@ class NonlocalAverage:
         )  # fmt: skip
         self._runs_within = int(runs[0])
         self._volume = volume
-        self._denominator = self._apply(volume)
-        if self.boundary_correction:
-            full = ball_weight(self.weight, self.radius, x.shape[1])
-            self._missing = np.maximum(full - self._denominator, 0.0)  # W - D_i where D_i < W
-            self._denominator = np.maximum(self._denominator, full)
+        self._denominator = None  # with the first average: one pass over the pairs for both
 
     def _moved_far(self, x: np.ndarray, slot: np.ndarray, arriving: bool) -> bool:
         """Whether a known particle has moved too far since its pairs were found.
@@ -324,21 +321,45 @@ class NonlocalAverage:
         y[self._slot] = v
         return y
 
-    def _apply(self, v: np.ndarray) -> np.ndarray:
-        """``A v`` for a field ``v`` of the caller's particles (dead slots hold zero)."""
+    def _apply(self, v: np.ndarray, v2: np.ndarray | None = None) -> np.ndarray | tuple[np.ndarray, ...]:
+        """``A v`` (and ``A v2``, in the same pass) for fields of the caller's particles."""
         y = self._slot_field(v)
         z = np.empty_like(y)
-        within = self._within
-        _kernels().pair_apply(len(y), self._runs_within, within.row, within.begin, within.j, self._w, y, z)
-        return z if self._identity else z[self._slot]
+        within, kernels = self._within, _kernels()
+        args = (len(y), self._runs_within, within.row, within.begin, within.j, self._w)
+        if v2 is None:
+            kernels.pair_apply(*args, y, z)
+            return z if self._identity else z[self._slot]
+        y2, z2 = self._slot_field(v2), np.empty_like(y)
+        kernels.pair_apply2(*args, y, y2, z, z2)
+        return (z, z2) if self._identity else (z[self._slot], z2[self._slot])
+
+    @property
+    def denominator(self) -> np.ndarray:
+        """``D_i = sum_j w_ij V_j`` with the weights and volumes of the last update, ``shape=(n,)``."""
+        if self._denominator is None:
+            self._set_denominator(self._apply(self._volume))
+        return self._denominator
+
+    def _set_denominator(self, D: np.ndarray) -> None:
+        if self.boundary_correction:
+            full = ball_weight(self.weight, self.radius, self._x_slot.shape[1])
+            self._missing = np.maximum(full - D, 0.0)  # W - D_i where D_i < W
+            D = np.maximum(D, full)
+        self._denominator = D
 
     def __call__(self, e: np.ndarray) -> np.ndarray:
         """The average of the field ``e`` (``shape=(n,)``) with the weights of the last update."""
         if self.is_local:
             return e
+        if self._denominator is None:  # the first average since the update: D in the same pass
+            numerator, D = self._apply(self._volume * e, self._volume)
+            self._set_denominator(D)
+        else:
+            numerator = self._apply(self._volume * e)
         if self.boundary_correction:
-            return (self._apply(self._volume * e) + self._missing * e) / self._denominator
-        return self._apply(self._volume * e) / self._denominator
+            return (numerator + self._missing * e) / self._denominator
+        return numerator / self._denominator
 
 
 def ball_weight(weight: str, radius: float, gdim: int) -> float:

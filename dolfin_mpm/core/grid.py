@@ -89,7 +89,7 @@ class Grid:
         self.K = np.ascontiguousarray(np.moveaxis(K, 0, -1))  # (tdim, gdim, num_cells)
         self.grad_N = np.ascontiguousarray(np.moveaxis(grad_N, 0, -1))  # (gdim+1, gdim, num_cells)
         self.x0_T = np.ascontiguousarray(x0.T)  # (gdim, num_cells)
-        self.cell_dofs_T = np.ascontiguousarray(self.cell_dofs.T)  # (gdim+1, num_cells)
+        self.cell_dofs_T = np.ascontiguousarray(self.cell_dofs.T, dtype=np.int32)  # (gdim+1, num_cells)
         factorial = 2.0 if self.tdim == 2 else 6.0
         self.cell_volume = np.abs(detJ) / factorial
         facet_measure = _largest_facet_measure(X)

@@ -1,13 +1,18 @@
 """Particle location in the background mesh and P1 basis values and gradients at particles.
 
 For speed the basis arrays are component-first (particle axis last): each component is one
-contiguous array over the particles.
+contiguous array over the particles. The loops over the particles are compiled C
+(``locate.c``): the barycentric coordinates in each particle's previous cell, and the gather
+of its cell's nodes and basis gradients, one pass each.
 """
 
+import ctypes
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
+from dolfin_mpm import native
 from dolfin_mpm.core import compat
 from dolfin_mpm.core.grid import Grid
 
@@ -15,6 +20,18 @@ __all__ = ["Basis", "barycentric", "basis_at", "locate"]
 
 #: A point counts as inside a cell when all its barycentric coordinates are >= -TOL.
 TOL = 1e-12
+
+_INT, _INDEX, _REAL = ctypes.c_int32, native.array(np.int32), native.array(np.float64)
+_kernels = native.kernels(
+    Path(__file__).with_suffix(".c"),
+    {
+        "barycentric": (
+            ctypes.c_int64, _INT, _REAL, _INDEX, ctypes.c_int64, _REAL, _REAL, ctypes.c_double, _REAL,
+            native.array(np.int8),
+        ),
+        "gather_basis": (ctypes.c_int64, _INT, _INDEX, ctypes.c_int64, _INDEX, _REAL, _INDEX, _REAL),
+    },
+)  # fmt: skip
 
 
 @dataclass
@@ -24,7 +41,7 @@ class Basis:
     C-contiguous arrays, read by the compiled transfers.
 
     Attributes:
-        dofs: nodes of each particle's cell, ``shape=(gdim + 1, n)``.
+        dofs: nodes of each particle's cell, int32, ``shape=(gdim + 1, n)``.
         N: basis values, ``shape=(gdim + 1, n)``.
         dN: basis gradients [1/m], ``shape=(gdim + 1, gdim, n)``.
         num_nodes: nodes of the grid (owned and ghosts).
@@ -37,15 +54,21 @@ class Basis:
     num_nodes: int
 
 
-def barycentric(grid: Grid, x: np.ndarray, cells: np.ndarray) -> np.ndarray:
-    """Barycentric coordinates of points ``x`` (``(n, 3)``) in ``cells``, ``shape=(gdim+1, n)``."""
-    g = grid.gdim
-    dx = [x[:, j] - grid.x0_T[j].take(cells) for j in range(g)]
-    lam = np.empty((g + 1, len(cells)))
-    for i in range(g):
-        lam[i + 1] = sum(grid.K[i, j].take(cells) * dx[j] for j in range(g))
-    lam[0] = 1.0 - lam[1:].sum(axis=0)
-    return lam
+def barycentric(grid: Grid, x: np.ndarray, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Barycentric coordinates of points ``x`` (``(n, 3)``) in ``cells`` (``(n,)``, -1: unknown).
+
+    Returns:
+        The coordinates, ``shape=(gdim+1, n)`` (those in cell 0 where the cell is unknown), and
+        whether each point lies in its cell (all coordinates ``>= -TOL``), ``shape=(n,)``.
+
+    """
+    n = len(cells)
+    lam, inside = np.empty((grid.gdim + 1, n)), np.empty(n, dtype=np.int8)
+    _kernels().barycentric(
+        n, grid.gdim, np.ascontiguousarray(x, dtype=np.float64).reshape(n, 3), np.ascontiguousarray(cells, dtype=np.int32),
+        grid.num_cells, grid.x0_T, grid.K, TOL, lam, inside,
+    )  # fmt: skip
+    return lam, inside.view(bool)
 
 
 def locate(grid: Grid, x: np.ndarray, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -62,16 +85,14 @@ def locate(grid: Grid, x: np.ndarray, cells: np.ndarray) -> tuple[np.ndarray, np
         undefined where ``cells == -1``).
 
     """
-    known = cells >= 0
-    cells = np.where(known, cells, 0).astype(np.int32)
-    N = barycentric(grid, x, cells)
-    inside = (N.min(axis=0) >= -TOL) & known
+    cells = np.array(cells, dtype=np.int32)
+    N, inside = barycentric(grid, x, cells)
     search = np.flatnonzero(~inside)
     cells[search] = -1
     if search.size:
         offsets, candidates = compat.candidate_cells(grid.tree, x[search])
         owner = np.repeat(np.arange(search.size), np.diff(offsets))
-        lam = barycentric(grid, x[search][owner], candidates)
+        lam, _ = barycentric(grid, x[search][owner], candidates)
         score = lam.min(axis=0)
         # Per point, the candidate with the largest smallest barycentric coordinate.
         order = np.lexsort((-score, owner))
@@ -84,6 +105,8 @@ def locate(grid: Grid, x: np.ndarray, cells: np.ndarray) -> tuple[np.ndarray, np
 
 def basis_at(grid: Grid, cells: np.ndarray, N: np.ndarray) -> Basis:
     """Gather the nodes and the (cell-constant) basis gradients of located particles."""
-    dofs = grid.cell_dofs_T.take(cells, axis=1)
-    dN = grid.grad_N.take(cells, axis=2)
+    n, g = len(cells), grid.gdim
+    dofs, dN = np.empty((g + 1, n), dtype=np.int32), np.empty((g + 1, g, n))
+    cells = np.ascontiguousarray(cells, dtype=np.int32)
+    _kernels().gather_basis(n, g, cells, grid.num_cells, grid.cell_dofs_T, grid.grad_N, dofs, dN)
     return Basis(dofs=dofs, N=np.ascontiguousarray(N), dN=dN, num_nodes=grid.num_nodes)

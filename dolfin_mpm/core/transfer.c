@@ -1,6 +1,6 @@
 /* Particle-to-grid and grid-to-particle loops of transfer.py, one pass over the particles each.
  *
- * Particle p lies in a cell with the nn = gdim + 1 nodes dofs[a n + p], basis values
+ * Particle p lies in a cell with the nn = gdim + 1 nodes dofs[a n + p] (int32), basis values
  * N[a n + p] and gradients dN[(a gdim + j) n + p] (component-first, as locate.Basis). Nodal
  * arrays are (num_nodes, k) and particle arrays (n, k), row-major. Sums run over the cell's
  * nodes in order, node by node of the cells for the nodal sums: the terms and their order are
@@ -12,14 +12,14 @@
 #define INLINE static inline __attribute__((always_inline))
 
 /* out[dofs[a, p], c] += N[a, p] values[p, c]; out (num_nodes, k) holds the sums on entry. */
-INLINE void scatter_of(int64_t n, int32_t nn, const int64_t *restrict dofs, const double *restrict N, int32_t k,
+INLINE void scatter_of(int64_t n, int32_t nn, const int32_t *restrict dofs, const double *restrict N, int32_t k,
                        const double *restrict values, double *restrict out)
 {
   for (int32_t a = 0; a < nn; ++a)
     for (int64_t p = 0; p < n; ++p)
     {
       const double N_ap = N[a * n + p];
-      double *o = out + dofs[a * n + p] * k;
+      double *o = out + (int64_t)dofs[a * n + p] * k;
       for (int32_t c = 0; c < k; ++c)
         o[c] += N_ap * values[p * k + c];
     }
@@ -27,7 +27,7 @@ INLINE void scatter_of(int64_t n, int32_t nn, const int64_t *restrict dofs, cons
 
 /* out[dofs[a, p], i] += sum_j (sigma_ij[p] volume[p]) dN_aj[p]: the internal forces R of the
  * stresses sigma, component-first (3, 3, n); out (num_nodes, gdim) holds the sums on entry. */
-INLINE void internal_force_of(int64_t n, int32_t gdim, const int64_t *restrict dofs, const double *restrict dN,
+INLINE void internal_force_of(int64_t n, int32_t gdim, const int32_t *restrict dofs, const double *restrict dN,
                               const double *restrict sigma, const double *restrict volume,
                               double *restrict out)
 {
@@ -35,7 +35,7 @@ INLINE void internal_force_of(int64_t n, int32_t gdim, const int64_t *restrict d
   for (int32_t a = 0; a < nn; ++a)
     for (int64_t p = 0; p < n; ++p)
     {
-      double *o = out + dofs[a * n + p] * gdim;
+      double *o = out + (int64_t)dofs[a * n + p] * gdim;
       for (int32_t i = 0; i < gdim; ++i)
       {
         double f = 0.0;
@@ -47,7 +47,7 @@ INLINE void internal_force_of(int64_t n, int32_t gdim, const int64_t *restrict d
 }
 
 /* out[p, c] = sum_a N[a, p] nodal[dofs[a, p], c], out (n, k). */
-INLINE void interpolate_of(int64_t n, int32_t nn, const int64_t *restrict dofs, const double *restrict N,
+INLINE void interpolate_of(int64_t n, int32_t nn, const int32_t *restrict dofs, const double *restrict N,
                            int32_t k, const double *restrict nodal, double *restrict out)
 {
   for (int64_t p = 0; p < n; ++p)
@@ -55,14 +55,14 @@ INLINE void interpolate_of(int64_t n, int32_t nn, const int64_t *restrict dofs, 
     {
       double sum = 0.0;
       for (int32_t a = 0; a < nn; ++a)
-        sum += N[a * n + p] * nodal[dofs[a * n + p] * k + c];
+        sum += N[a * n + p] * nodal[(int64_t)dofs[a * n + p] * k + c];
       out[p * k + c] = sum;
     }
 }
 
 /* out[i, j, p] = sum_a nodal[dofs[a, p], i] dN[a, j, p]: the gradient of a nodal field with k
  * components, component-first (k, gdim, n). */
-INLINE void gradient_of(int64_t n, int32_t gdim, const int64_t *restrict dofs, const double *restrict dN,
+INLINE void gradient_of(int64_t n, int32_t gdim, const int32_t *restrict dofs, const double *restrict dN,
                         int32_t k, const double *restrict nodal, double *restrict out)
 {
   const int32_t nn = gdim + 1;
@@ -72,14 +72,14 @@ INLINE void gradient_of(int64_t n, int32_t gdim, const int64_t *restrict dofs, c
       {
         double sum = 0.0;
         for (int32_t a = 0; a < nn; ++a)
-          sum += nodal[dofs[a * n + p] * k + i] * dN[(a * gdim + j) * n + p];
+          sum += nodal[(int64_t)dofs[a * n + p] * k + i] * dN[(a * gdim + j) * n + p];
         out[(i * gdim + j) * n + p] = sum;
       }
 }
 
 /* The exported loops, with the common sizes as constants: 2D (3 nodes) and 3D (4 nodes), k = 1
  * or gdim components. */
-void scatter(int64_t n, int32_t nn, const int64_t *dofs, const double *N, int32_t k, const double *values,
+void scatter(int64_t n, int32_t nn, const int32_t *dofs, const double *N, int32_t k, const double *values,
              double *out)
 {
   if (nn == 3 && k <= 2)
@@ -90,7 +90,7 @@ void scatter(int64_t n, int32_t nn, const int64_t *dofs, const double *N, int32_
     scatter_of(n, nn, dofs, N, k, values, out);
 }
 
-void internal_force(int64_t n, int32_t gdim, const int64_t *dofs, const double *dN, const double *sigma,
+void internal_force(int64_t n, int32_t gdim, const int32_t *dofs, const double *dN, const double *sigma,
                     const double *volume, double *out)
 {
   if (gdim == 2)
@@ -101,7 +101,7 @@ void internal_force(int64_t n, int32_t gdim, const int64_t *dofs, const double *
     internal_force_of(n, gdim, dofs, dN, sigma, volume, out);
 }
 
-void interpolate(int64_t n, int32_t nn, const int64_t *dofs, const double *N, int32_t k, const double *nodal,
+void interpolate(int64_t n, int32_t nn, const int32_t *dofs, const double *N, int32_t k, const double *nodal,
                  double *out)
 {
   if (nn == k + 1 && (k == 2 || k == 3)) /* vectors of the mesh's dimension */
@@ -110,7 +110,7 @@ void interpolate(int64_t n, int32_t nn, const int64_t *dofs, const double *N, in
     interpolate_of(n, nn, dofs, N, k, nodal, out);
 }
 
-void gradient(int64_t n, int32_t gdim, const int64_t *dofs, const double *dN, int32_t k, const double *nodal,
+void gradient(int64_t n, int32_t gdim, const int32_t *dofs, const double *dN, int32_t k, const double *nodal,
               double *out)
 {
   if (k == gdim && (k == 2 || k == 3)) /* the velocity gradient */

@@ -18,7 +18,7 @@ from dolfin_mpm.materials.tensor import component_first, particle_first
 
 __all__ = ["gradient", "internal_force", "interpolate", "scatter", "volume_ratio"]
 
-_INT, _NODES, _REAL = ctypes.c_int32, native.array(np.int64), native.array(np.float64)
+_INT, _NODES, _REAL = ctypes.c_int32, native.array(np.int32), native.array(np.float64)
 _SIGNATURES = {
     name: (ctypes.c_int64, _INT, _NODES, _REAL, *extra, _REAL, _REAL)
     for name, extra in (
