@@ -36,7 +36,7 @@ from dolfin_mpm import native
 from dolfin_mpm.explicit.step import STAGES
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "demos"))
-import demo_silo  # noqa: E402
+import demo_silo
 
 _REAL = native.array(np.float64)
 _stream = native.kernels(
@@ -152,7 +152,7 @@ def measure(h: float, t_from: float, runs: int, steps: int) -> dict:
 
 
 def report(r: dict) -> list[str]:
-    b, m = r["bandwidth_GB_per_s"], r["bytes_per_particle"]
+    b, m, pairs = r["bandwidth_GB_per_s"], r["bytes_per_particle"], r["pairs_per_particle"]
     lines = [
         f"silo h = {1e3 * r['h']:g} mm, r = 5 mm, flowing from t = {r['t_from']:g} s: "
         f"{r['particles']:.0f} particles, {r['runs']} runs x {r['steps_per_run']} steps; medians:",
@@ -160,7 +160,7 @@ def report(r: dict) -> list[str]:
         f"  {'step':16s} {r['ms_per_step']:8.2f} ms/step",
         f"  fixed-point iterations {r['iterations_per_step']:.2f} per step, pair-list rebuilds "
         f"{r['rebuilds_per_100_steps']:.1f} per 100 steps, pairs per particle "
-        f"{r['pairs_per_particle']['within_r_plus_skin']:.1f} (within r: {r['pairs_per_particle']['within_r']:.1f})",
+        f"{pairs['within_r_plus_skin']:.1f} (within r: {pairs['within_r']:.1f})",
         f"  {r['ns_per_particle_iteration']:.1f} ns per particle-iteration = "
         f"{r['copy_bytes_per_particle_iteration']:.0f} bytes of STREAM copy at {b['dram']['copy']:.1f} GB/s "
         f"(triad {b['dram']['triad']:.1f}; on arrays the size of the stresses: copy "

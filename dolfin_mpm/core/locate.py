@@ -63,11 +63,9 @@ def barycentric(grid: Grid, x: np.ndarray, cells: np.ndarray) -> tuple[np.ndarra
 
     """
     n = len(cells)
+    x, cells = np.ascontiguousarray(x, dtype=np.float64).reshape(n, 3), np.ascontiguousarray(cells, np.int32)
     lam, inside = np.empty((grid.gdim + 1, n)), np.empty(n, dtype=np.int8)
-    _kernels().barycentric(
-        n, grid.gdim, np.ascontiguousarray(x, dtype=np.float64).reshape(n, 3), np.ascontiguousarray(cells, dtype=np.int32),
-        grid.num_cells, grid.x0_T, grid.K, TOL, lam, inside,
-    )  # fmt: skip
+    _kernels().barycentric(n, grid.gdim, x, cells, grid.num_cells, grid.x0_T, grid.K, TOL, lam, inside)
     return lam, inside.view(bool)
 
 
