@@ -77,6 +77,74 @@ INLINE void gradient_of(int64_t n, int32_t gdim, const int32_t *restrict dofs, c
       }
 }
 
+/* v_interp[p] = sum_a N[a, p] v_node[dofs[a, p]] and the new particle velocity v[p]: v_p + dt
+ * sum_a N a_node (flip = 1), flip (v_p + dt sum_a N a_node) + (1 - flip) v_interp (0 < flip < 1)
+ * or v_interp (flip = 0); all (n, gdim) or (num_nodes, gdim). With musl, also the nodal sums of
+ * the momenta m_p v[p] into momenta (num_nodes, gdim), which holds the sums on entry. The
+ * terms and their order are those of interpolate and scatter. */
+INLINE void g2p_of(int64_t n, int32_t gdim, const int32_t *restrict dofs, const double *restrict N,
+                   const double *restrict v_node, const double *restrict a_node, const double *restrict v_p,
+                   double dt, double flip, int32_t musl, const double *restrict mass, double *restrict v,
+                   double *restrict v_interp, double *restrict momenta)
+{
+  const int32_t nn = gdim + 1;
+  for (int64_t p = 0; p < n; ++p)
+    for (int32_t c = 0; c < gdim; ++c)
+    {
+      double vi = 0.0, ai = 0.0;
+      for (int32_t a = 0; a < nn; ++a)
+        vi += N[a * n + p] * v_node[(int64_t)dofs[a * n + p] * gdim + c];
+      v_interp[p * gdim + c] = vi;
+      if (flip > 0.0)
+        for (int32_t a = 0; a < nn; ++a)
+          ai += N[a * n + p] * a_node[(int64_t)dofs[a * n + p] * gdim + c];
+      if (flip == 1.0)
+        v[p * gdim + c] = v_p[p * gdim + c] + dt * ai;
+      else if (flip > 0.0)
+        v[p * gdim + c] = flip * (v_p[p * gdim + c] + dt * ai) + (1.0 - flip) * vi;
+      else
+        v[p * gdim + c] = vi;
+    }
+  if (!musl)
+    return;
+  for (int32_t a = 0; a < nn; ++a)
+    for (int64_t p = 0; p < n; ++p)
+    {
+      const double N_ap = N[a * n + p];
+      double *o = momenta + (int64_t)dofs[a * n + p] * gdim;
+      for (int32_t c = 0; c < gdim; ++c)
+        o[c] += N_ap * (mass[p] * v[p * gdim + c]);
+    }
+}
+
+/* P2G in one pass over the particles: the nodal sums of the masses m_p, the momenta m_p v_p and
+ * the internal forces of the stresses sigma (component-first (3, 3, n)) and volumes, into mass
+ * (num_nodes), momentum and force (num_nodes, gdim), each holding the sums on entry; the terms
+ * and their order are those of scatter and internal_force. */
+INLINE void p2g_of(int64_t n, int32_t gdim, const int32_t *restrict dofs, const double *restrict N,
+                   const double *restrict dN, const double *restrict m, const double *restrict v_p,
+                   const double *restrict sigma, const double *restrict volume, double *restrict mass,
+                   double *restrict momentum, double *restrict force)
+{
+  const int32_t nn = gdim + 1;
+  for (int32_t a = 0; a < nn; ++a)
+    for (int64_t p = 0; p < n; ++p)
+    {
+      const double N_ap = N[a * n + p];
+      const int64_t d = dofs[a * n + p];
+      mass[d] += N_ap * m[p];
+      for (int32_t c = 0; c < gdim; ++c)
+        momentum[d * gdim + c] += N_ap * (m[p] * v_p[p * gdim + c]);
+      for (int32_t i = 0; i < gdim; ++i)
+      {
+        double f = 0.0;
+        for (int32_t j = 0; j < gdim; ++j)
+          f += sigma[(3 * i + j) * n + p] * volume[p] * dN[(a * gdim + j) * n + p];
+        force[d * gdim + i] += f;
+      }
+    }
+}
+
 /* The exported loops, with the common sizes as constants: 2D (3 nodes) and 3D (4 nodes), k = 1
  * or gdim components. */
 void scatter(int64_t n, int32_t nn, const int32_t *dofs, const double *N, int32_t k, const double *values,
@@ -133,4 +201,23 @@ void volume_ratio(int64_t n, int32_t gdim, const double *restrict L, double dt, 
       J[k] = F(0, 0) * (F(1, 1) * F(2, 2) - F(1, 2) * F(2, 1)) - F(0, 1) * (F(1, 0) * F(2, 2) - F(1, 2) * F(2, 0)) +
              F(0, 2) * (F(1, 0) * F(2, 1) - F(1, 1) * F(2, 0));
 #undef F
+}
+
+void g2p(int64_t n, int32_t gdim, const int32_t *dofs, const double *N, const double *v_node, const double *a_node,
+         const double *v_p, double dt, double flip, int32_t musl, const double *mass, double *v, double *v_interp,
+         double *momenta)
+{
+  if (gdim == 2)
+    g2p_of(n, 2, dofs, N, v_node, a_node, v_p, dt, flip, musl, mass, v, v_interp, momenta);
+  else
+    g2p_of(n, 3, dofs, N, v_node, a_node, v_p, dt, flip, musl, mass, v, v_interp, momenta);
+}
+
+void p2g(int64_t n, int32_t gdim, const int32_t *dofs, const double *N, const double *dN, const double *m,
+         const double *v_p, const double *sigma, const double *volume, double *mass, double *momentum, double *force)
+{
+  if (gdim == 2)
+    p2g_of(n, 2, dofs, N, dN, m, v_p, sigma, volume, mass, momentum, force);
+  else
+    p2g_of(n, 3, dofs, N, dN, m, v_p, sigma, volume, mass, momentum, force);
 }

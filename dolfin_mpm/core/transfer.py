@@ -16,7 +16,15 @@ from dolfin_mpm import native
 from dolfin_mpm.core.locate import Basis
 from dolfin_mpm.materials.tensor import component_first, particle_first
 
-__all__ = ["gradient", "internal_force", "interpolate", "scatter", "volume_ratio"]
+__all__ = [
+    "gradient",
+    "grid_to_particles",
+    "internal_force",
+    "interpolate",
+    "particles_to_grid",
+    "scatter",
+    "volume_ratio",
+]
 
 _INT, _NODES, _REAL = ctypes.c_int32, native.array(np.int32), native.array(np.float64)
 _SIGNATURES = {
@@ -29,7 +37,13 @@ _SIGNATURES = {
     )
 }
 _SIGNATURES["volume_ratio"] = (ctypes.c_int64, _INT, _REAL, ctypes.c_double, _REAL)
+_SIGNATURES["g2p"] = (
+    ctypes.c_int64, _INT, _NODES, _REAL, _REAL, _REAL, _REAL, ctypes.c_double, ctypes.c_double, _INT,
+    _REAL, _REAL, _REAL, _REAL,
+)  # fmt: skip
+_SIGNATURES["p2g"] = (ctypes.c_int64, _INT, _NODES, *[_REAL] * 9)
 _kernels = native.kernels(Path(__file__).with_suffix(".c"), _SIGNATURES)
+_UNUSED = np.zeros(1)  # what a kernel is given for an array it does not read
 
 
 def _as_real(a: np.ndarray) -> np.ndarray:
@@ -66,6 +80,77 @@ def internal_force(basis: Basis, sigma: np.ndarray, volume: np.ndarray) -> np.nd
     sigma = component_first(np.asarray(sigma, dtype=np.float64))  # no copy of component-first memory
     _kernels().internal_force(len(volume), gdim, basis.dofs, basis.dN, sigma, _as_real(volume), out)
     return out
+
+
+def particles_to_grid(
+    basis: Basis, mass: np.ndarray, v: np.ndarray, sigma: np.ndarray, volume: np.ndarray
+) -> tuple[np.ndarray, ...]:
+    """Local nodal sums of mass, momentum and internal force, in one pass over the particles.
+
+    Args:
+        mass: particle masses [kg], ``shape=(n,)``.
+        v: velocities [m/s], ``shape=(n, gdim)``.
+        sigma: Cauchy stress [Pa], ``shape=(n, 3, 3)``.
+        volume: particle volumes, ``shape=(n,)``.
+
+    Returns:
+        ``scatter(basis, mass)``, ``scatter(basis, mass v)`` and ``internal_force(basis, sigma,
+        volume)``, term for term: ``shape=(num_nodes,)``, ``(num_nodes, gdim)`` twice.
+
+    """
+    gdim = basis.dN.shape[1]
+    m, p, f = np.zeros(basis.num_nodes), np.zeros((basis.num_nodes, gdim)), np.zeros((basis.num_nodes, gdim))
+    sigma = component_first(np.asarray(sigma, dtype=np.float64))
+    _kernels().p2g(
+        len(mass),
+        gdim,
+        basis.dofs,
+        basis.N,
+        basis.dN,
+        _as_real(mass),
+        _as_real(v),
+        sigma,
+        _as_real(volume),
+        m,
+        p,
+        f,
+    )
+    return m, p, f
+
+
+def grid_to_particles(
+    basis: Basis,
+    v_node: np.ndarray,
+    a_node: np.ndarray,
+    v_p: np.ndarray,
+    dt: float,
+    flip: float,
+    mass: np.ndarray | None = None,
+) -> tuple[np.ndarray, ...]:
+    """New particle velocities from the grid, in one pass over the particles.
+
+    Args:
+        v_node, a_node: nodal velocities [m/s] and accelerations [m/s^2], ``shape=(num_nodes, gdim)``.
+        v_p: the particles' velocities at the start of the step, ``shape=(n, gdim)``.
+        dt: time step [s].
+        flip: FLIP fraction in [0, 1]: ``v = flip (v_p + dt a) + (1 - flip) v_grid``.
+        mass: particle masses [kg] ``shape=(n,)`` to also return the local nodal sums of the new
+            momenta (MUSL's re-map), or ``None``.
+
+    Returns:
+        ``v`` and the grid velocity at the particles ``v_grid``, ``shape=(n, gdim)``, and the
+        nodal momenta ``shape=(num_nodes, gdim)`` (or ``None``).
+
+    """
+    n, gdim = v_p.shape
+    v, v_grid = np.empty((n, gdim)), np.empty((n, gdim))
+    musl = mass is not None
+    momenta = np.zeros((basis.num_nodes, gdim)) if musl else _UNUSED
+    _kernels().g2p(
+        n, gdim, basis.dofs, basis.N, _as_real(v_node), _as_real(a_node), _as_real(v_p), dt, flip, int(musl),
+        _as_real(mass) if musl else _UNUSED, v, v_grid, momenta,
+    )  # fmt: skip
+    return v, v_grid, momenta if musl else None
 
 
 def interpolate(basis: Basis, nodal: np.ndarray) -> np.ndarray:

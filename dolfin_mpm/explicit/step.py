@@ -32,7 +32,13 @@ from mpi4py import MPI
 from dolfin_mpm.core.grid import Grid
 from dolfin_mpm.core.locate import Basis, basis_at, locate
 from dolfin_mpm.core.particles import Particles
-from dolfin_mpm.core.transfer import gradient, internal_force, interpolate, scatter, volume_ratio
+from dolfin_mpm.core.transfer import (
+    gradient,
+    grid_to_particles,
+    internal_force,
+    particles_to_grid,
+    volume_ratio,
+)
 from dolfin_mpm.core.volumetric import nodal_volumetric
 from dolfin_mpm.core.walls import Contact, contacts, stop_at_walls
 from dolfin_mpm.explicit.anderson import Anderson
@@ -116,10 +122,11 @@ def p2g(model: Model, P: Particles, basis: Basis, time: float = 0.0) -> Nodal:
     Moving walls are where they are at ``time`` [s].
     """
     grid = model.grid
-    m = grid.assemble(grid.mass, scatter(basis, P.mass))
-    momentum = grid.assemble(grid.momentum, scatter(basis, _momenta(P.mass, P.v)))
+    m, momentum, f_int = particles_to_grid(basis, P.mass, P.v, P.sigma, P.volume)
+    m = grid.assemble(grid.mass, m)
+    momentum = grid.assemble(grid.momentum, momentum)
     grid.f_ext.x.array[:] = (m[:, None] * model.gravity).ravel()  # from the assembled mass
-    f_int = grid.assemble(grid.f_int, internal_force(basis, P.sigma, P.volume))
+    f_int = grid.assemble(grid.f_int, f_int)
     m_max = grid.comm.allreduce(m.max() if m.size else 0.0, MPI.MAX)
     active = m > model.options.mass_tol * m_max
     inv_m = np.zeros_like(m)
@@ -171,16 +178,12 @@ def g2p(
         and the nodal velocity it came from, ``shape=(num_nodes, gdim)``.
 
     """
-    flip, grid = model.options.flip, model.grid
-    v_interp = interpolate(basis, v_node)
-    if flip == 1.0:
-        v = P.v + dt * interpolate(basis, a_node)
-    elif flip > 0.0:
-        v = flip * (P.v + dt * interpolate(basis, a_node)) + (1.0 - flip) * v_interp
-    else:
-        v = v_interp
-    if model.options.scheme == "MUSL":
-        v_node = grid.assemble(grid.velocity, scatter(basis, _momenta(P.mass, v))) * nodal.inv_mass[:, None]
+    grid, musl = model.grid, model.options.scheme == "MUSL"
+    v, v_interp, momenta = grid_to_particles(
+        basis, v_node, a_node, P.v, dt, model.options.flip, P.mass if musl else None
+    )
+    if musl:
+        v_node = grid.assemble(grid.velocity, momenta) * nodal.inv_mass[:, None]
         nodal.apply_bcs(v_node)
     L = gradient(basis, v_node)
     if model.options.volumetric == "nodal":
@@ -447,14 +450,6 @@ def _predicted_change(R_changes: list[np.ndarray], order: int) -> np.ndarray:
     """The change of the owned ``R`` in this step, extrapolated from the last steps' changes."""
     dR = R_changes[:order]
     return 2.0 * dR[0] - dR[1] if len(dR) == 2 else dR[0]
-
-
-def _momenta(mass: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """The particles' momenta ``m_p v_p`` for velocities ``v``, ``shape=(n, gdim)``."""
-    out = np.empty_like(v)
-    for c in range(v.shape[1]):  # by columns: numpy is slow over short rows
-        np.multiply(mass, v[:, c], out=out[:, c])
-    return out
 
 
 def _check_finite(state: State) -> None:
