@@ -223,11 +223,12 @@ def stop_at_walls(walls: list, x: np.ndarray, dx: np.ndarray, v: np.ndarray, tim
     velocities [m/s] of the step from ``time`` to ``time + dt`` [s]; ``dx`` loses the part
     beyond the wall, ``v`` its component into the wall (relative to a moving wall).
     """
+    walls = [w for w in walls if isinstance(w, RigidWall)]
+    if not walls:
+        return 0
     stopped = 0
     reach = np.sqrt(np.max(dx[:, 0] ** 2 + dx[:, 1] ** 2, initial=0.0))  # the longest move
     for w in walls:
-        if not isinstance(w, RigidWall):
-            continue
         phi0 = w.distance(x, time)
         advance = dt * (w.velocity @ w.normal)  # the wall's own move along its normal
         idx = np.flatnonzero(phi0 < reach + abs(advance))  # only these can reach the wall
