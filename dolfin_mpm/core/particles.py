@@ -1,21 +1,13 @@
 """Material points as flat arrays (particle axis first), and sinks that take them out."""
 
-import ctypes
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
-from dolfin_mpm import native
 from dolfin_mpm.materials.tensor import component_first, particle_first
 
-__all__ = ["Particles", "Sink", "all_finite"]
-
-_kernels = native.kernels(
-    Path(__file__).with_suffix(".c"),
-    {"any_not_finite": (ctypes.c_int64, native.array(np.float64), native.array(np.int32))},
-)
+__all__ = ["Particles", "Sink"]
 
 
 class Particles:
@@ -100,17 +92,6 @@ class Particles:
                 self._set(name, particle_first(np.concatenate([component_first(a), component_first(b)], -1)))
             else:
                 self._set(name, np.concatenate([a, b]))
-
-
-def all_finite(*arrays: np.ndarray) -> bool:
-    """Whether every value of the float64 ``arrays`` is finite: one pass over each memory, in any layout."""
-    bad = np.zeros(1, dtype=np.int32)
-    for a in arrays:
-        memory = component_first(a) if _component_first(a) else np.ascontiguousarray(a, dtype=np.float64)
-        _kernels().any_not_finite(memory.size, memory.reshape(-1), bad)
-        if bad[0]:
-            return False
-    return True
 
 
 def _component_first(a: np.ndarray) -> bool:
