@@ -240,3 +240,33 @@ def test_a_rough_moving_wall_carries_the_block_on_it_at_its_speed():
         solver.step()
         forces.append(solver.reaction(floor))
     assert np.mean(forces, axis=0) == pytest.approx([0.0, m * G], rel=0.01, abs=0.01 * m * G)
+
+
+def test_contact_applies_each_walls_share_of_the_coulomb_condition():
+    """The compiled correction equals its definition: v + sum_w alpha_w (coulomb(v - u_w) + u_w - v)."""
+    from dolfin_mpm.core.boundary import coulomb
+    from dolfin_mpm.core.walls import Contact
+
+    rng = np.random.default_rng(3)
+    walls = [
+        dm.RigidWall([(0.0, 0.0), (1.0, 0.0)], 0.3, "still"),
+        dm.RigidWall([(1.0, 0.0), (2.0, 0.0)], np.inf, "rough, moving", velocity=(0.2, -0.1)),
+    ]
+    nodes = np.array([4, 0, 7, 2, 9])
+    alpha = [rng.uniform(0.0, 1.0, len(nodes)) for _ in walls]
+    contact = Contact(nodes, walls[0].normal, list(zip(walls, alpha)), np.ones(len(nodes)), owned=10)
+    v = rng.normal(size=(10, 2))
+    v[0] = (0.0, -0.1)  # straight into the walls: no tangential speed (stick)
+    expected = v.copy()
+    vi = v[nodes]
+    expected[nodes] = vi + sum(
+        a[:, None] * (coulomb(vi - w.velocity, w.normal, w.mu) + w.velocity - vi) for w, a in zip(walls, alpha)
+    )
+    contact.apply(v)
+    assert np.allclose(v, expected, rtol=0.0, atol=1e-15)
+    assert np.allclose(v[0], 0.0, atol=1e-15)  # both walls stop the node that moves straight in
+    # Each wall's force is its share of the change of momentum (unit masses here), over dt.
+    assert np.allclose(contact.changes.sum(axis=0), v[nodes] - vi, rtol=0.0, atol=1e-15)
+    forces = contact.forces(dt=0.5)
+    for k, w in enumerate(walls):
+        assert np.allclose(forces[w], contact.changes[k].sum(axis=0) / 0.5)

@@ -19,12 +19,14 @@ Contact is imposed in two places:
   interpolated velocity may point into the wall; the stop keeps the wall impenetrable there.
 """
 
+import ctypes
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
 
-from dolfin_mpm.core.boundary import coulomb
+from dolfin_mpm import native
 from dolfin_mpm.core.grid import Grid
 from dolfin_mpm.core.locate import Basis
 from dolfin_mpm.core.transfer import scatter
@@ -36,6 +38,16 @@ __all__ = ["Contact", "RigidWall", "contacts", "stop_at_walls"]
 ON_LINE = 1e-6
 #: A particle stopped on a wall may end this fraction of the wall's length behind it (round-off).
 ROUNDOFF = 1e-12
+
+_REAL = native.array(np.float64)
+_kernels = native.kernels(
+    Path(__file__).with_suffix(".c"),
+    {
+        "contact_apply": (
+            ctypes.c_int64, native.array(np.int64), _REAL, ctypes.c_int32, _REAL, _REAL, _REAL, _REAL, _REAL,
+        ),
+    },
+)  # fmt: skip
 
 
 @dataclass(eq=False)  # a wall is itself: compared and hashed by identity
@@ -133,23 +145,26 @@ class RigidWall:
 class Contact:
     """The walls of one line in one step: nodes and each wall's share ``alpha`` of each node.
 
-    ``apply`` corrects nodal velocities like a boundary condition; the walls' corrections are
-    computed from the same velocities and added. :meth:`forces` are those of the last call.
+    ``apply`` corrects nodal velocities like a boundary condition, each wall in its share by
+    the unilateral Coulomb condition of :func:`~dolfin_mpm.core.boundary.coulomb` (a compiled
+    pass, ``walls.c``); the walls' corrections are computed from the same velocities and added.
+    :meth:`forces` are those of the last call.
     """
 
     def __init__(self, nodes: np.ndarray, normal: np.ndarray, members: list, mass: np.ndarray, owned: int):
-        self.nodes, self.normal, self.members = nodes, normal, members
+        self.nodes, self.normal, self.members = np.ascontiguousarray(nodes, dtype=np.int64), normal, members
         self.mass = np.where(nodes < owned, mass, 0.0)  # ghosts count on their owners
-        self.changes: list[np.ndarray] = []
+        self._alpha = np.ascontiguousarray([alpha for _, alpha in members], dtype=np.float64)
+        self._mu = np.array([wall.mu for wall, _ in members], dtype=np.float64)
+        self._velocity = np.ascontiguousarray([wall.velocity for wall, _ in members], dtype=np.float64)
+        self.changes = np.zeros((len(members), len(nodes), 2))
 
     def apply(self, v: np.ndarray) -> None:
-        """Correct the nodal velocities ``v`` (``shape=(num_nodes, gdim)``) in place."""
-        vi = v[self.nodes]
-        self.changes = [
-            alpha[:, None] * (coulomb(vi - wall.velocity, self.normal, wall.mu) + wall.velocity - vi)
-            for wall, alpha in self.members
-        ]
-        v[self.nodes] = vi + sum(self.changes)
+        """Correct the nodal velocities ``v`` (``shape=(num_nodes, 2)``, C-contiguous) in place."""
+        members = len(self.members)
+        _kernels().contact_apply(
+            len(self.nodes), self.nodes, self.normal, members, self._alpha, self._mu, self._velocity, v, self.changes
+        )
 
     def forces(self, dt: float) -> dict:
         """Each wall's force [N] on the material in the last :meth:`apply`, by wall.
