@@ -161,9 +161,9 @@ class Contact:
 
     def apply(self, v: np.ndarray) -> None:
         """Correct the nodal velocities ``v`` (``shape=(num_nodes, 2)``, C-contiguous) in place."""
-        members = len(self.members)
+        k, m = len(self.nodes), len(self.members)
         _kernels().contact_apply(
-            len(self.nodes), self.nodes, self.normal, members, self._alpha, self._mu, self._velocity, v, self.changes
+            k, self.nodes, self.normal, m, self._alpha, self._mu, self._velocity, v, self.changes
         )
 
     def forces(self, dt: float) -> dict:
