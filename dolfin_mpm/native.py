@@ -83,6 +83,27 @@ def _compile(compiler: list[str], source: Path, library: Path) -> None:
         raise RuntimeError(f"{what} (set CC to a C compiler):\n{error}")
 
 
+@functools.cache
 def array(dtype) -> type:
-    """The ctypes argument type of a C-contiguous numpy array of ``dtype``."""
-    return np.ctypeslib.ndpointer(dtype=dtype, flags="C_CONTIGUOUS")
+    """The ctypes argument type of a C-contiguous numpy array of ``dtype``: passes its data pointer.
+
+    Raises ``TypeError`` for anything else. (numpy's ``ndpointer`` checks the same at three
+    times the cost, a tenth of a small step's time.)
+    """
+    dtype = np.dtype(dtype)
+
+    class Array:
+        @staticmethod
+        def from_param(a):
+            if not isinstance(a, np.ndarray) or a.dtype != dtype or not a.flags.c_contiguous:
+                raise TypeError(f"need a C-contiguous numpy array of {dtype}, got {_describe(a)}")
+            return ctypes.c_void_p(a.ctypes.data)
+
+    Array.__name__ = f"Array[{dtype}]"
+    return Array
+
+
+def _describe(a) -> str:
+    if isinstance(a, np.ndarray):
+        return f"{'a C-contiguous' if a.flags.c_contiguous else 'a non-contiguous'} array of {a.dtype}"
+    return type(a).__name__

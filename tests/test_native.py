@@ -22,8 +22,9 @@ def test_compiled_once_into_the_cache(tmp_path, monkeypatch):
     source.write_text(source.read_text().replace("2.0", "3.0"))  # an edited source is rebuilt
     native.load(source, signature).twice(3, v)
     assert np.array_equal(v, [0.0, 12.0, 24.0]) and len(list(library.parent.glob("twice-*.so"))) == 2
-    with pytest.raises(ctypes.ArgumentError):  # the argument types are checked
-        lib.twice(3, np.arange(3))
+    for wrong in (np.arange(3), np.arange(6.0).reshape(2, 3).T, [0.0, 1.0, 2.0]):  # the types are checked
+        with pytest.raises(ctypes.ArgumentError, match="C-contiguous numpy array of float64"):
+            lib.twice(3, wrong)
 
 
 @pytest.mark.parametrize("compiler", ["false", "no-such-compiler-anywhere"])
