@@ -50,11 +50,13 @@ def _as_real(a: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(a, dtype=np.float64)
 
 
-def scatter(basis: Basis, values: np.ndarray) -> np.ndarray:
+def scatter(basis: Basis, values: np.ndarray, particles: np.ndarray | None = None) -> np.ndarray:
     """Local nodal sums ``sum_p N_a(x_p) values_p``.
 
     Args:
         values: ``shape=(n,)`` or ``(n, k)``.
+        particles: the indices of the ``n`` particles of ``basis`` that ``values`` belong to,
+            ascending (the others' terms are left out); ``None``: all of them.
 
     Returns:
         ``shape=(num_nodes,)`` or ``(num_nodes, k)``.
@@ -63,7 +65,10 @@ def scatter(basis: Basis, values: np.ndarray) -> np.ndarray:
     values = _as_real(values)
     k = 1 if values.ndim == 1 else values.shape[1]
     out = np.zeros((basis.num_nodes, *values.shape[1:]))
-    _kernels().scatter(basis.N.shape[1], basis.N.shape[0], basis.dofs, basis.N, k, values, out)
+    dofs, N = basis.dofs, basis.N
+    if particles is not None:
+        dofs, N = np.take(dofs, particles, axis=1), np.take(N, particles, axis=1)
+    _kernels().scatter(N.shape[1], N.shape[0], dofs, N, k, values, out)
     return out
 
 

@@ -203,22 +203,18 @@ def contacts(
             lines[k][1].append(bc)
     if not lines:
         return out
-    walls = [w for _, line in lines.values() for w in line]
-    values = np.zeros((len(x), len(walls)))
-    for j, w in enumerate(walls):  # only particles within a cell of a wall's line reach its nodes
-        near = np.flatnonzero(w.distance(x, time) < grid.diameter)
-        near = near[w.over(x[near], time)]
-        values[near, j] = m[near]
-    shares = scatter(basis, values)  # each wall's mass at each node, local sums
-    column = 0
     for k, (_, line) in lines.items():
         w0 = line[0]
         behind = np.flatnonzero((w0.distance(grid.node_x, time) <= tol) & (mass > 0.0))
+        # Only particles within a cell of the line reach its nodes: found for the line once (with
+        # room for its walls' offsets, at most tol apart), then tested for each wall.
+        candidates = np.flatnonzero(w0.distance(x, time) < grid.diameter + 2.0 * tol)
         members = []
         for w in line:
-            share = grid.assemble(grid.scratch, np.ascontiguousarray(shares[:, column]))
+            near = candidates[w.distance(x[candidates], time) < grid.diameter]
+            near = near[w.over(x[near], time)]
+            share = grid.assemble(grid.scratch, scatter(basis, m[near], near))  # the wall's mass at nodes
             members.append((w, share[behind] / mass[behind]))
-            column += 1
         touched = np.logical_or.reduce([alpha > 0.0 for _, alpha in members])
         nodes = behind[touched]
         members = [(w, alpha[touched]) for w, alpha in members]
