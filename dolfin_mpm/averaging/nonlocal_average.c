@@ -123,42 +123,42 @@ void pair_apply(int64_t n, int64_t runs, const int32_t *restrict row, const int6
   }
 }
 
-/* out = A v and out2 = A v2 in one pass over the pairs, each summed as pair_apply sums it. */
+/* out = A v for two fields at once, v and out (n, 2) row-major (the two fields side by side:
+ * a pair reads and writes one place for both); each field summed as pair_apply sums it. */
 void pair_apply2(int64_t n, int64_t runs, const int32_t *restrict row, const int64_t *restrict begin,
                  const int32_t *restrict j, const double *restrict w, const double *restrict v,
-                 const double *restrict v2, double *restrict out, double *restrict out2)
+                 double *restrict out)
 {
-  for (int64_t a = 0; a < n; ++a)
-  {
+  for (int64_t a = 0; a < 2 * n; ++a)
     out[a] = v[a];
-    out2[a] = v2[a];
-  }
   for (int64_t r = 0; r < runs; ++r)
   {
-    const int32_t a = row[r];
-    const double v_a = v[a], v2_a = v2[a];
-    double sum0 = 0.0, sum1 = 0.0, sum20 = 0.0, sum21 = 0.0;
+    const int64_t a = row[r];
+    const double v_a = v[2 * a], u_a = v[2 * a + 1];
+    double sum0 = 0.0, sum1 = 0.0, t0 = 0.0, t1 = 0.0;
     int64_t k = begin[r];
     for (; k + 1 < begin[r + 1]; k += 2)
     {
-      sum0 += w[k] * v[j[k]];
-      sum1 += w[k + 1] * v[j[k + 1]];
-      sum20 += w[k] * v2[j[k]];
-      sum21 += w[k + 1] * v2[j[k + 1]];
-      out[j[k]] += w[k] * v_a;
-      out[j[k + 1]] += w[k + 1] * v_a;
-      out2[j[k]] += w[k] * v2_a;
-      out2[j[k + 1]] += w[k + 1] * v2_a;
+      const int64_t b = j[k], c = j[k + 1];
+      sum0 += w[k] * v[2 * b];
+      t0 += w[k] * v[2 * b + 1];
+      sum1 += w[k + 1] * v[2 * c];
+      t1 += w[k + 1] * v[2 * c + 1];
+      out[2 * b] += w[k] * v_a;
+      out[2 * b + 1] += w[k] * u_a;
+      out[2 * c] += w[k + 1] * v_a;
+      out[2 * c + 1] += w[k + 1] * u_a;
     }
     if (k < begin[r + 1])
     {
-      sum0 += w[k] * v[j[k]];
-      sum20 += w[k] * v2[j[k]];
-      out[j[k]] += w[k] * v_a;
-      out2[j[k]] += w[k] * v2_a;
+      const int64_t b = j[k];
+      sum0 += w[k] * v[2 * b];
+      t0 += w[k] * v[2 * b + 1];
+      out[2 * b] += w[k] * v_a;
+      out[2 * b + 1] += w[k] * u_a;
     }
-    out[a] += sum0 + sum1;
-    out2[a] += sum20 + sum21;
+    out[2 * a] += sum0 + sum1;
+    out[2 * a + 1] += t0 + t1;
   }
 }
 

@@ -51,7 +51,7 @@ _SIGNATURES = {
         _OFFSET, _INDEX, _OFFSET, _INDEX, _REAL,
     ),
     "pair_apply": (ctypes.c_int64, ctypes.c_int64, _INDEX, _OFFSET, _INDEX, _REAL, _REAL, _REAL),
-    "pair_apply2": (ctypes.c_int64, ctypes.c_int64, _INDEX, _OFFSET, _INDEX, *[_REAL] * 5),
+    "pair_apply2": (ctypes.c_int64, ctypes.c_int64, _INDEX, _OFFSET, _INDEX, _REAL, _REAL, _REAL),
     "pair_search": (
         ctypes.c_int64, ctypes.c_int32, _REAL, ctypes.c_double, _REAL, ctypes.c_double, _OFFSET,
         ctypes.c_int64, _INDEX, _OFFSET, _INDEX, _OFFSET, _INDEX, _OFFSET, _OFFSET,
@@ -330,9 +330,11 @@ class NonlocalAverage:
         if v2 is None:
             kernels.pair_apply(*args, y, z)
             return z if self._identity else z[self._slot]
-        y2, z2 = self._slot_field(v2), np.empty_like(y)
-        kernels.pair_apply2(*args, y, y2, z, z2)
-        return (z, z2) if self._identity else (z[self._slot], z2[self._slot])
+        y = np.stack([y, self._slot_field(v2)], axis=1)  # side by side: one place per pair for both
+        z = np.empty_like(y)
+        kernels.pair_apply2(*args, y, z)
+        z = z if self._identity else z[self._slot]
+        return z[:, 0], z[:, 1]
 
     @property
     def denominator(self) -> np.ndarray:
