@@ -122,6 +122,22 @@ def test_skin_reuse_equals_fresh_rebuild():
     assert kept.rebuilds == 3
 
 
+def test_more_pairs_closer_than_r_than_there_was_room_for():
+    """A lattice whose neighbours all lie in the skin until its columns pair up, within half the skin."""
+    i, j = np.meshgrid(np.arange(30), np.arange(30), indexing="ij")
+    x = 0.105 * np.c_[i.ravel(), j.ravel()].astype(float)  # no pair within r = 0.1
+    volume, e = np.ones(len(x)), np.random.default_rng(6).random(len(x))
+    ids = np.arange(len(x))
+    kept = NonlocalAverage(0.1, "cubic", skin=0.04)
+    kept.update(x, volume, ids)
+    kept.update(x, volume, ids, rebuild=True)  # rebuilt pairs get room for as many within r as before
+    room = len(kept._within.j)
+    x[:, 0] += np.where(i.ravel() % 2 == 0, 0.009, -0.009)  # columns 2k and 2k + 1 now 0.087 apart
+    kept.update(x, volume, ids)
+    assert kept.rebuilds == 2 and kept._within_count >= 30 * 15 > room
+    assert np.allclose(kept(e), brute_force(x, volume, e, 0.1, "cubic"), rtol=0.0, atol=ATOL)
+
+
 def test_arrivals_in_small_batches_equal_a_fresh_rebuild():
     """As under MPI: particles come and go each step while all move; 3D, every weight."""
     rng = np.random.default_rng(5)

@@ -33,12 +33,14 @@ static inline double weight(int32_t kind, double s2)
 }
 
 /* Two passes: the pairs closer than r from their squared distances, then the weights of the
- * kept ones (contiguous: no gathers, and no root for the pairs dropped). */
-static inline int64_t weights_of(int32_t kind, int32_t gdim, int64_t runs, const int32_t *restrict row,
-                                 const int64_t *restrict begin, const int32_t *restrict j,
-                                 const double *restrict x, double inv_r, int32_t *restrict row_near,
-                                 int64_t *restrict begin_near, int32_t *restrict j_near,
-                                 double *restrict w)
+ * kept ones (contiguous: no gathers, and no root for the pairs dropped). At most `capacity`
+ * are kept: counts[0] = the runs kept, counts[1] = the pairs closer than r, which exceeds
+ * `capacity` when the output was too short (then only counted from the run that did not fit). */
+static inline void weights_of(int32_t kind, int32_t gdim, int64_t runs, const int32_t *restrict row,
+                              const int64_t *restrict begin, const int32_t *restrict j,
+                              const double *restrict x, double inv_r, int64_t capacity,
+                              int32_t *restrict row_near, int64_t *restrict begin_near,
+                              int32_t *restrict j_near, double *restrict w, int64_t *counts)
 {
   const double inv_r2 = inv_r * inv_r;
   int64_t runs_near = 0, count = 0;
@@ -46,6 +48,24 @@ static inline int64_t weights_of(int32_t kind, int32_t gdim, int64_t runs, const
   {
     const double *x_a = x + (int64_t)row[r] * gdim;
     const int64_t first = count;
+    if (count + begin[r + 1] - begin[r] > capacity) /* may not fit: count only, from here on */
+    {
+      for (int64_t q = r; q < runs; ++q)
+      {
+        const double *x_q = x + (int64_t)row[q] * gdim;
+        for (int64_t k = begin[q]; k < begin[q + 1]; ++k)
+        {
+          const double *x_b = x + (int64_t)j[k] * gdim;
+          double d2 = 0.0;
+          for (int32_t c = 0; c < gdim; ++c)
+            d2 += (x_q[c] - x_b[c]) * (x_q[c] - x_b[c]);
+          count += d2 * inv_r2 < 1.0;
+        }
+      }
+      counts[0] = runs_near;
+      counts[1] = count > capacity ? count : capacity + 1;
+      return;
+    }
     for (int64_t k = begin[r]; k < begin[r + 1]; ++k)
     {
       const double *x_b = x + (int64_t)j[k] * gdim;
@@ -67,29 +87,31 @@ static inline int64_t weights_of(int32_t kind, int32_t gdim, int64_t runs, const
   begin_near[runs_near] = count;
   for (int64_t k = 0; k < count; ++k)
     w[k] = weight(kind, w[k]);
-  return runs_near;
+  counts[0] = runs_near;
+  counts[1] = count;
 }
 
 /* The pairs of the list (runs, row, begin, j) closer than r, in their order, to the list
- * (*runs_near, row_near, begin_near, j_near), with their weights w(|x_i - x_j| / r) in w.
- * One loop per weight and dimension (2 or 3), each with both inlined. (Accumulating A volume
- * in the same loop made it slower than a second pass.) */
+ * (counts[0] runs, row_near, begin_near, j_near) of at most `capacity` pairs, with their weights
+ * w(|x_i - x_j| / r) in w; counts as weights_of leaves them. One loop per weight and dimension
+ * (2 or 3), each with both inlined. (Accumulating A volume in the same loop made it slower
+ * than a second pass.) */
 void pair_weights(int64_t runs, const int32_t *row, const int64_t *begin, const int32_t *j,
-                  int32_t gdim, const double *x, double inv_r, int32_t kind, int64_t *runs_near,
-                  int32_t *row_near, int64_t *begin_near, int32_t *j_near, double *w)
+                  int32_t gdim, const double *x, double inv_r, int32_t kind, int64_t capacity,
+                  int32_t *row_near, int64_t *begin_near, int32_t *j_near, double *w, int64_t *counts)
 {
 #define WEIGHTS_OF(kind, gdim)                                                                      \
-  weights_of(kind, gdim, runs, row, begin, j, x, inv_r, row_near, begin_near, j_near, w)
+  weights_of(kind, gdim, runs, row, begin, j, x, inv_r, capacity, row_near, begin_near, j_near, w, counts)
   if (gdim == 2)
-    *runs_near = kind == CUBIC      ? WEIGHTS_OF(CUBIC, 2)
-                 : kind == CONSTANT ? WEIGHTS_OF(CONSTANT, 2)
-                 : kind == WENDLAND ? WEIGHTS_OF(WENDLAND, 2)
-                                    : WEIGHTS_OF(GAUSSIAN, 2);
+    kind == CUBIC      ? WEIGHTS_OF(CUBIC, 2)
+    : kind == CONSTANT ? WEIGHTS_OF(CONSTANT, 2)
+    : kind == WENDLAND ? WEIGHTS_OF(WENDLAND, 2)
+                       : WEIGHTS_OF(GAUSSIAN, 2);
   else
-    *runs_near = kind == CUBIC      ? WEIGHTS_OF(CUBIC, 3)
-                 : kind == CONSTANT ? WEIGHTS_OF(CONSTANT, 3)
-                 : kind == WENDLAND ? WEIGHTS_OF(WENDLAND, 3)
-                                    : WEIGHTS_OF(GAUSSIAN, 3);
+    kind == CUBIC      ? WEIGHTS_OF(CUBIC, 3)
+    : kind == CONSTANT ? WEIGHTS_OF(CONSTANT, 3)
+    : kind == WENDLAND ? WEIGHTS_OF(WENDLAND, 3)
+                       : WEIGHTS_OF(GAUSSIAN, 3);
 #undef WEIGHTS_OF
 }
 

@@ -18,7 +18,9 @@ The loops over the pairs (~10^7 for 10^5 particles at r = 2h) are compiled C
 numpy would stream every intermediate through memory, and the search of a rebuild. They
 are bound by memory bandwidth, so the pairs are stored in runs of equal first index (its
 value once per run) and the weight pass hands the products only the pairs closer than r
-(about two thirds of those within r + skin).
+(about two thirds of those within r + skin), in room for as many as the last update found and
+a tenth more (it makes more room when more came within r). The first average of an update
+sums the denominators in the same pass, the two fields side by side in memory.
 """
 
 import ctypes
@@ -48,7 +50,7 @@ _INDEX, _OFFSET, _REAL = native.array(np.int32), native.array(np.int64), native.
 _SIGNATURES = {
     "pair_weights": (
         ctypes.c_int64, _INDEX, _OFFSET, _INDEX, ctypes.c_int32, _REAL, ctypes.c_double, ctypes.c_int32,
-        _OFFSET, _INDEX, _OFFSET, _INDEX, _REAL,
+        ctypes.c_int64, _INDEX, _OFFSET, _INDEX, _REAL, _OFFSET,
     ),
     "pair_apply": (ctypes.c_int64, ctypes.c_int64, _INDEX, _OFFSET, _INDEX, _REAL, _REAL, _REAL),
     "pair_apply2": (ctypes.c_int64, ctypes.c_int64, _INDEX, _OFFSET, _INDEX, _REAL, _REAL, _REAL),
@@ -154,6 +156,8 @@ class NonlocalAverage:
         self._slot_ids = None
         self._pairs = _Pairs.empty(0, 0)
         self._within, self._w = _Pairs.empty(0, 0), np.zeros(0)  # the pairs closer than r, weights
+        self._within_count = None  # how many there were at the last update
+        self._within_of = None  # the pairs they were found among
         self.rebuilds = 0
         if not self.is_local:
             _kernels()  # compiled now, before any long work
@@ -286,18 +290,30 @@ class NonlocalAverage:
             np.copyto(self._x_slot, x)
         else:
             self._x_slot[self._slot] = x
-        pairs, within = self._pairs, self._within
-        if len(within.row) != len(pairs.row) or len(within.j) != len(pairs.j):
-            self._within = within = _Pairs.empty(len(pairs.row), len(pairs.j))
-            self._w = np.empty(len(pairs.j))
-        runs = np.zeros(1, dtype=np.int64)
-        _kernels().pair_weights(
-            len(pairs.row), pairs.row, pairs.begin, pairs.j, x.shape[1], self._x_slot, 1.0 / self.radius,
-            WEIGHTS[self.weight], runs, within.row, within.begin, within.j, self._w,
-        )  # fmt: skip
-        self._runs_within = int(runs[0])
+        pairs = self._pairs
+        if self._within_of is not pairs:  # new pairs: room for as many closer than r as before
+            self._within_room(len(pairs.j) if self._within_count is None else self._within_count)
+        counts = np.zeros(2, dtype=np.int64)
+        while True:
+            within = self._within
+            _kernels().pair_weights(
+                len(pairs.row), pairs.row, pairs.begin, pairs.j, x.shape[1], self._x_slot, 1.0 / self.radius,
+                WEIGHTS[self.weight], len(within.j), within.row, within.begin, within.j, self._w, counts,
+            )  # fmt: skip
+            if counts[1] <= len(within.j):
+                break
+            self._within_room(int(counts[1]))  # more pairs came closer than r than there was room for
+        self._runs_within, self._within_count = int(counts[0]), int(counts[1])
         self._volume = volume
         self._denominator = None  # with the first average: one pass over the pairs for both
+
+    def _within_room(self, m: int) -> None:
+        """Room for ``m`` pairs closer than r, a tenth more and a run of the longest (a run is kept whole)."""
+        pairs = self._pairs
+        longest = int(np.max(np.diff(pairs.begin), initial=0))
+        room = min(m + m // 10 + longest, len(pairs.j))
+        self._within, self._w = _Pairs.empty(len(pairs.row), room), np.empty(room)
+        self._within_of = pairs
 
     def _moved_far(self, x: np.ndarray, slot: np.ndarray, arriving: bool) -> bool:
         """Whether a known particle has moved too far since its pairs were found.
