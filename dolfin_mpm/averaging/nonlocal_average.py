@@ -176,7 +176,8 @@ class NonlocalAverage:
 
     def _rebuild(self, x: np.ndarray, ids: np.ndarray) -> None:
         n = len(x)
-        self._pairs = _search(x, self.radius + self.skin, len(self._pairs.j) if self.rebuilds else None)
+        m = len(self._pairs.j)  # room for as many pairs as last time and a tenth more: one search
+        self._pairs = _search(x, self.radius + self.skin, m + m // 10 + 1024 if self.rebuilds else None)
         self._slot_ids, self._x_ref, self._base = ids.copy(), x.copy(), n
         self._base_runs = len(self._pairs.row)
         self._x_slot = x.copy()
