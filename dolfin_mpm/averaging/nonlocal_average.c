@@ -295,3 +295,44 @@ void pair_search(int64_t n, int32_t gdim, const double *x, double reach, const d
   else
     search(3, n, x, reach, lo, side, num_cubes, capacity, row, begin, j, cube, order, start, counts);
 }
+
+/* Where each of the m ids `now` sits in the n ids `before`, when `now` is `before` with some
+ * removed (the same order): at[k], or at[0] = -1 when it is not (then at is undefined). */
+void subsequence(int64_t n, const int64_t *restrict before, int64_t m, const int64_t *restrict now,
+                 int64_t *restrict at)
+{
+  int64_t i = 0;
+  for (int64_t k = 0; k < m; ++k)
+  {
+    while (i < n && before[i] != now[k])
+      ++i;
+    if (i == n)
+    {
+      if (m > 0)
+        at[0] = -1;
+      return;
+    }
+    at[k] = i++;
+  }
+}
+
+/* The largest squared distance of the n points x (n, gdim) from x_ref[slot[k]] (x_ref (*, gdim)),
+ * over those with slot[k] >= 0; into *out. */
+void max_moved2(int64_t n, int32_t gdim, const double *restrict x, const int64_t *restrict slot,
+                const double *restrict x_ref, double *out)
+{
+  double largest = 0.0;
+  for (int64_t k = 0; k < n; ++k)
+  {
+    if (slot[k] < 0)
+      continue;
+    double d2 = 0.0;
+    for (int32_t c = 0; c < gdim; ++c)
+    {
+      const double u = x[k * gdim + c] - x_ref[slot[k] * gdim + c];
+      d2 += u * u;
+    }
+    largest = d2 > largest ? d2 : largest;
+  }
+  *out = largest;
+}

@@ -54,6 +54,8 @@ _SIGNATURES = {
     ),
     "pair_apply": (ctypes.c_int64, ctypes.c_int64, _INDEX, _OFFSET, _INDEX, _REAL, _REAL, _REAL),
     "pair_apply2": (ctypes.c_int64, ctypes.c_int64, _INDEX, _OFFSET, _INDEX, _REAL, _REAL, _REAL),
+    "subsequence": (ctypes.c_int64, _OFFSET, ctypes.c_int64, _OFFSET, _OFFSET),
+    "max_moved2": (ctypes.c_int64, ctypes.c_int32, _REAL, _OFFSET, _REAL, _REAL),
     "pair_search": (
         ctypes.c_int64, ctypes.c_int32, _REAL, ctypes.c_double, _REAL, ctypes.c_double, _OFFSET,
         ctypes.c_int64, _INDEX, _OFFSET, _INDEX, _OFFSET, _INDEX, _OFFSET, _OFFSET,
@@ -192,12 +194,21 @@ class NonlocalAverage:
         live = np.zeros(len(self._slot_ids), dtype=bool)
         live[slot] = True
         self._x_slot[~live] = np.inf
-        self._slot, self._ids, self._index = slot, ids.copy(), IdIndex(ids)
+        self._slot, self._ids, self._index = slot, ids.copy(), None  # the index: made when needed
         n = len(self._slot_ids)
         self._identity = len(slot) == n and np.array_equal(slot, np.arange(n))
 
     def _slots_of(self, ids: np.ndarray) -> np.ndarray:
         """Live slot of each of ``ids``, -1 for particles not known (or removed) since."""
+        known = np.ascontiguousarray(self._ids, dtype=np.int64)
+        ids = np.ascontiguousarray(ids, dtype=np.int64)
+        if len(ids) <= len(known):  # the common case: some removed (a sink), the order kept
+            at = np.empty(len(ids), dtype=np.int64)
+            _kernels().subsequence(len(known), known, len(ids), ids, at)
+            if len(ids) == 0 or at[0] >= 0:
+                return self._slot[at]
+        if self._index is None:
+            self._index = IdIndex(self._ids)
         at = self._index(ids)
         return np.where(at >= 0, self._slot[at], -1) if len(self._slot) else at
 
@@ -322,13 +333,11 @@ class NonlocalAverage:
         Half the skin, a third once particles have arrived; ``slot``: each particle's, -1 if
         not known.
         """
-        if slot is self._slot and self._identity:  # the common case: no gathers
-            u = x - self._x_ref
-        else:
-            known = slot >= 0
-            u = x[known] - self._x_ref[slot[known]]
+        largest = np.zeros(1)
+        slot = np.ascontiguousarray(slot, dtype=np.int64)
+        _kernels().max_moved2(len(x), x.shape[1], x, slot, self._x_ref, largest)
         limit = self.skin / 3.0 if arriving or len(self._slot_ids) > self._base else 0.5 * self.skin
-        return np.max(np.einsum("ij,ij->i", u, u), initial=0.0) > limit**2
+        return largest[0] > limit**2
 
     def _slot_field(self, v: np.ndarray) -> np.ndarray:
         """The caller's particle field ``v`` on the slots, zero on the dead ones."""
