@@ -7,9 +7,9 @@ other, and their medians reported. Per window: ms per step in all and per stage 
 not overlap and add up to the step), fixed-point iterations and pair-list rebuilds per step.
 
 It sets the times against what the core can move, measured in the same run with STREAM's copy
-and triad (``bandwidth.c``) on arrays far larger than the caches and on arrays the size of the
-particles' stress: a particle-iteration (a step's time over particles x iterations) is printed
-as the bytes the copy would move in that time. Memory: the bytes per particle that the
+and triad (``bandwidth.c``) on arrays far larger than the caches (``--stream-mb``) and on
+arrays the size of the particles' stress: a particle-iteration (a step's time over particles x
+iterations) is printed as the bytes the copy would move in that time. Memory: the bytes per particle that the
 particles and the non-local pair lists hold, and the peak of what one step allocates on top
 (``tracemalloc``; numpy's buffers are traced). Writes everything to JSON.
 
@@ -115,7 +115,7 @@ def window(solver, steps: int) -> dict:
     }
 
 
-def measure(h: float, t_from: float, runs: int, steps: int) -> dict:
+def measure(h: float, t_from: float, runs: int, steps: int, stream_mb: float = 256.0) -> dict:
     solver = flowing_silo(h, t_from)
     windows = [window(solver, steps) for _ in range(runs)]
     med = lambda f: float(np.median([f(w) for w in windows]))  # noqa: E731
@@ -128,7 +128,7 @@ def measure(h: float, t_from: float, runs: int, steps: int) -> dict:
     solver.step()
     _, peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
-    copy_dram, copy_fit = bandwidth(1 << 25), bandwidth(9 * len(P))
+    copy_dram, copy_fit = bandwidth(int(stream_mb * 2**20 / 8)), bandwidth(9 * len(P))
     return {
         "h": h,
         "t_from": t_from,
@@ -178,8 +178,13 @@ def main():
     parser.add_argument("--t-from", type=float, default=0.05, help="time after the opening [s]")
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--steps", type=int, default=100)
+    parser.add_argument(
+        "--stream-mb", type=float, default=256.0, help="STREAM's arrays [MB each], beyond the caches"
+    )
     parser.add_argument("--json", type=Path, default=Path(__file__).with_name("silo_step.json"))
     args = parser.parse_args()
+    if not args.stream_mb > 0.0:
+        parser.error("--stream-mb must be > 0")
     for name in ("runs", "steps"):
         if getattr(args, name) < 1:
             parser.error(f"--{name.replace('_', '-')} must be >= 1")
@@ -194,7 +199,7 @@ def main():
         "silo": [],
     }
     for h in args.h:
-        r = measure(h, args.t_from, args.runs, args.steps)
+        r = measure(h, args.t_from, args.runs, args.steps, args.stream_mb)
         results["silo"].append(r)
         print("\n".join(report(r)), flush=True)
     args.json.write_text(json.dumps(results, indent=2))

@@ -1,0 +1,45 @@
+"""The benchmark scripts run small: their numbers are there and add up."""
+
+import importlib.util
+import json
+import sys
+from pathlib import Path
+
+import pytest
+from mpi4py import MPI
+
+BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+
+pytestmark = pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="the benchmarks run on one rank")
+
+
+def load(name: str):
+    spec = importlib.util.spec_from_file_location(name, BENCHMARKS / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_silo_step_measures_the_flowing_silo(tmp_path, monkeypatch):
+    silo_step = load("silo_step")
+    out = tmp_path / "silo_step.json"
+    monkeypatch.setattr(sys, "argv", ["silo_step", "--h", "0.01", "--t-from", "0.004", "--runs", "2",
+                                      "--steps", "3", "--stream-mb", "8", "--json", str(out)])  # fmt: skip
+    silo_step.main()
+    (r,) = json.loads(out.read_text())["silo"]
+    stages = r["stages_ms_per_step"]
+    assert {"neighbours", "averaging", "p2g", "g2p"} <= set(stages)
+    assert 0.5 * r["ms_per_step"] < sum(stages.values()) <= 1.01 * r["ms_per_step"]  # stages add up
+    assert r["iterations_per_step"] >= 1.0 and r["particles"] == 4800
+    assert r["pairs_per_particle"]["within_r_plus_skin"] > r["pairs_per_particle"]["within_r"] > 0.0
+    assert r["bandwidth_GB_per_s"]["dram"]["copy"] > 0.1 and r["copy_bytes_per_particle_iteration"] > 0.0
+    assert r["bytes_per_particle"]["particles"] >= 8 * (3 + 2 + 9 + 1 + 1)  # x, v, sigma, mass, volume
+    assert r["bytes_per_particle"]["pair_lists"] > 4 * r["pairs_per_particle"]["within_r_plus_skin"]
+
+
+def test_silo_step_refuses_bad_arguments(monkeypatch, capsys):
+    silo_step = load("silo_step")
+    monkeypatch.setattr(sys, "argv", ["silo_step", "--steps", "0"])
+    with pytest.raises(SystemExit) as exit_:
+        silo_step.main()
+    assert exit_.value.code == 2 and "--steps must be >= 1" in capsys.readouterr().err
