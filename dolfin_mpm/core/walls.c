@@ -40,3 +40,17 @@ void contact_apply(int64_t k, const int64_t *restrict nodes, const double *restr
     v_i[1] = v1 + total1;
   }
 }
+
+/* near[k] = whether point k of x (n, 3) lies less than limit[w] in front of the line of some of
+ * the m walls (a_w - x) . n_w < limit[w], a_w (m, 2) a point of the line, n_w (m, 2) its normal. */
+void near_lines(int64_t n, const double *restrict x, int32_t m, const double *restrict a,
+                const double *restrict normal, const double *restrict limit, int8_t *restrict near)
+{
+  for (int64_t k = 0; k < n; ++k)
+  {
+    int8_t any = 0;
+    for (int32_t w = 0; w < m; ++w)
+      any |= (a[2 * w] - x[3 * k]) * normal[2 * w] + (a[2 * w + 1] - x[3 * k + 1]) * normal[2 * w + 1] < limit[w];
+    near[k] = any;
+  }
+}

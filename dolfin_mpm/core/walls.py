@@ -46,6 +46,7 @@ _kernels = native.kernels(
         "contact_apply": (
             ctypes.c_int64, native.array(np.int64), _REAL, ctypes.c_int32, _REAL, _REAL, _REAL, _REAL, _REAL,
         ),
+        "near_lines": (ctypes.c_int64, _REAL, ctypes.c_int32, _REAL, _REAL, _REAL, native.array(np.int8)),
     },
 )  # fmt: skip
 
@@ -239,11 +240,18 @@ def stop_at_walls(walls: list, x: np.ndarray, dx: np.ndarray, v: np.ndarray, tim
         return 0
     stopped = 0
     reach = np.sqrt(np.max(dx[:, 0] ** 2 + dx[:, 1] ** 2, initial=0.0))  # the longest move
-    for w in walls:
-        phi0 = w.distance(x, time)
-        advance = dt * (w.velocity @ w.normal)  # the wall's own move along its normal
-        idx = np.flatnonzero(phi0 < reach + abs(advance))  # only these can reach the wall
-        phi0 = phi0[idx]
+    advances = [dt * (w.velocity @ w.normal) for w in walls]  # each wall's own move along its normal
+    limits = np.array([reach + abs(advance) for advance in advances])
+    near = np.empty(len(x), dtype=np.int8)  # only these can reach a wall: one pass for all walls
+    starts = np.ascontiguousarray([w.start(time) for w in walls])
+    normals = np.ascontiguousarray([w.normal for w in walls])
+    points = np.ascontiguousarray(x, dtype=np.float64).reshape(len(x), 3)
+    _kernels().near_lines(len(x), points, len(walls), starts, normals, limits, near)
+    candidates = np.flatnonzero(near)
+    for w, advance, limit in zip(walls, advances, limits):
+        phi0 = w.distance(x[candidates], time)
+        idx = candidates[phi0 < limit]
+        phi0 = phi0[phi0 < limit]
         phi1 = phi0 - dx[idx, 0] * w.normal[0] - dx[idx, 1] * w.normal[1] + advance
         cross = (phi1 < 0.0) & (phi0 >= -ROUNDOFF * w.length)  # those stopped before too
         idx, phi0, phi1 = idx[cross], phi0[cross], phi1[cross]
