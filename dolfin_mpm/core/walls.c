@@ -1,5 +1,6 @@
-/* The grid side of the rigid walls (walls.py): the walls of one line correct the velocities of
- * the nodes behind it, each in its share alpha of the node, in one pass over the nodes. 2D. */
+/* Loops of the rigid walls (walls.py), 2D: the walls of one line correct the velocities of the
+ * nodes behind it, each in its share alpha of the node, in one pass over the nodes; and the
+ * particles near some walls' lines are found in one pass over the particles. */
 #include <math.h>
 #include <stdint.h>
 

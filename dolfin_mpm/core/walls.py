@@ -209,7 +209,7 @@ def contacts(
         behind = np.flatnonzero((w0.distance(grid.node_x, time) <= tol) & (mass > 0.0))
         # Only particles within a cell of the line reach its nodes: found for the line once (with
         # room for its walls' offsets, at most tol apart), then tested for each wall.
-        candidates = np.flatnonzero(w0.distance(x, time) < grid.diameter + 2.0 * tol)
+        candidates = _near_lines(x, [w0], [grid.diameter + 2.0 * tol], time)
         members = []
         for w in line:
             near = candidates[w.distance(x[candidates], time) < grid.diameter]
@@ -221,6 +221,20 @@ def contacts(
         members = [(w, alpha[touched]) for w, alpha in members]
         out[k] = Contact(nodes, w0.normal, members, mass[nodes], grid.num_owned_nodes)
     return out
+
+
+def _near_lines(x: np.ndarray, walls: list, limits: list, time: float) -> np.ndarray:
+    """The points of ``x`` (``(n, 3)``) less than ``limits[w]`` [m] in front of some wall's line.
+
+    One pass over the points for all walls, as they are at ``time`` [s]; ascending indices.
+    """
+    near = np.empty(len(x), dtype=np.int8)
+    starts = np.ascontiguousarray([w.start(time) for w in walls], dtype=np.float64)
+    normals = np.ascontiguousarray([w.normal for w in walls], dtype=np.float64)
+    points = np.ascontiguousarray(x, dtype=np.float64).reshape(len(x), 3)
+    limits = np.array(limits, dtype=np.float64)
+    _kernels().near_lines(len(x), points, len(walls), starts, normals, limits, near)
+    return np.flatnonzero(near)
 
 
 def _same_line(a: tuple, b: tuple, tol: float) -> bool:
@@ -241,13 +255,8 @@ def stop_at_walls(walls: list, x: np.ndarray, dx: np.ndarray, v: np.ndarray, tim
     stopped = 0
     reach = np.sqrt(np.max(dx[:, 0] ** 2 + dx[:, 1] ** 2, initial=0.0))  # the longest move
     advances = [dt * (w.velocity @ w.normal) for w in walls]  # each wall's own move along its normal
-    limits = np.array([reach + abs(advance) for advance in advances])
-    near = np.empty(len(x), dtype=np.int8)  # only these can reach a wall: one pass for all walls
-    starts = np.ascontiguousarray([w.start(time) for w in walls])
-    normals = np.ascontiguousarray([w.normal for w in walls])
-    points = np.ascontiguousarray(x, dtype=np.float64).reshape(len(x), 3)
-    _kernels().near_lines(len(x), points, len(walls), starts, normals, limits, near)
-    candidates = np.flatnonzero(near)
+    limits = [reach + abs(advance) for advance in advances]
+    candidates = _near_lines(x, walls, limits, time)  # only these can reach a wall
     for w, advance, limit in zip(walls, advances, limits):
         phi0 = w.distance(x[candidates], time)
         idx = candidates[phi0 < limit]
