@@ -3,8 +3,8 @@
  * Particle p lies in a cell with the nn = gdim + 1 nodes dofs[a n + p] (int32), basis values
  * N[a n + p] and gradients dN[(a gdim + j) n + p] (component-first, as locate.Basis). Nodal
  * arrays are (num_nodes, k) and particle arrays (n, k), row-major. Sums run over the cell's
- * nodes in order, node by node of the cells for the nodal sums: the terms and their order are
- * those of the sparse products they replace. Each loop is compiled for 2D and 3D with the
+ * nodes in order; a nodal sum takes its particles' terms in the particles' order (one pass over
+ * the particles, each of its nodes in turn). Each loop is compiled for 2D and 3D with the
  * dimension a constant (fully unrolled inner loops) and once for any other.
  */
 #include <stdint.h>
@@ -15,8 +15,8 @@
 INLINE void scatter_of(int64_t n, int32_t nn, const int32_t *restrict dofs, const double *restrict N, int32_t k,
                        const double *restrict values, double *restrict out)
 {
-  for (int32_t a = 0; a < nn; ++a)
-    for (int64_t p = 0; p < n; ++p)
+  for (int64_t p = 0; p < n; ++p)
+    for (int32_t a = 0; a < nn; ++a)
     {
       const double N_ap = N[a * n + p];
       double *o = out + (int64_t)dofs[a * n + p] * k;
@@ -32,8 +32,8 @@ INLINE void internal_force_of(int64_t n, int32_t gdim, const int32_t *restrict d
                               double *restrict out)
 {
   const int32_t nn = gdim + 1;
-  for (int32_t a = 0; a < nn; ++a)
-    for (int64_t p = 0; p < n; ++p)
+  for (int64_t p = 0; p < n; ++p)
+    for (int32_t a = 0; a < nn; ++a)
     {
       double *o = out + (int64_t)dofs[a * n + p] * gdim;
       for (int32_t i = 0; i < gdim; ++i)
@@ -107,8 +107,8 @@ INLINE void g2p_of(int64_t n, int32_t gdim, const int32_t *restrict dofs, const 
     }
   if (!musl)
     return;
-  for (int32_t a = 0; a < nn; ++a)
-    for (int64_t p = 0; p < n; ++p)
+  for (int64_t p = 0; p < n; ++p)
+    for (int32_t a = 0; a < nn; ++a)
     {
       const double N_ap = N[a * n + p];
       double *o = momenta + (int64_t)dofs[a * n + p] * gdim;
@@ -127,8 +127,8 @@ INLINE void p2g_of(int64_t n, int32_t gdim, const int32_t *restrict dofs, const 
                    double *restrict momentum, double *restrict force)
 {
   const int32_t nn = gdim + 1;
-  for (int32_t a = 0; a < nn; ++a)
-    for (int64_t p = 0; p < n; ++p)
+  for (int64_t p = 0; p < n; ++p)
+    for (int32_t a = 0; a < nn; ++a)
     {
       const double N_ap = N[a * n + p];
       const int64_t d = dofs[a * n + p];
