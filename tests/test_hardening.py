@@ -5,6 +5,7 @@ traceback); a few bounds keep expressions and sizes from hanging or exhausting m
 """
 
 import time
+import warnings
 from pathlib import Path
 
 import dolfin_mpm  # noqa: F401  (first: loads DOLFINx's libraries)
@@ -370,6 +371,7 @@ def _overrides(rng) -> list[str]:
     return out
 
 
+@pytest.mark.filterwarnings("ignore:dt = .* the stable step:RuntimeWarning")  # drawn dt may exceed it
 def test_fuzz_every_input_builds_or_is_a_scenario_error(monkeypatch):
     """200 generated scenarios (expressions and values): a build or a ScenarioError, nothing else."""
     monkeypatch.setattr(scenario, "available_memory", lambda: 20e6)  # sizes stay small and quick
@@ -412,3 +414,17 @@ def test_a_non_local_radius_that_overflows_or_pairs_every_particle_is_refused(
         scenario.build(scenario.load(DEMOS / "silo.toml", overrides))
     (error,) = info.value.errors
     assert error.startswith(f"{path}: ") and fragment in error, error
+
+
+def test_a_step_above_the_stable_one_is_warned_in_one_line(capsys):
+    """The run goes on (the estimate has a safety factor), but not silently."""
+    with pytest.warns(RuntimeWarning, match=r"times the stable step") as record:
+        sim = scenario.build(scenario.load(BAR, ["solver.dt=1.0"]))
+    stable = sim.solver.critical_dt
+    assert sim.solver.dt == 1.0 and f"{1.0 / stable:.3g} times" in str(record[0].message)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        scenario.build(scenario.load(BAR, [f"solver.dt={0.9 * stable!r}"]))  # below: no warning
+    assert main(["check", str(BAR), "--set", "solver.dt=1.0"]) == 0
+    out, err = capsys.readouterr()
+    assert err.startswith("warning: dt = 1 s is") and err.count("\n") == 1 and "Traceback" not in out + err

@@ -12,6 +12,7 @@ every rank runs the same command; rank 0 prints.
 import argparse
 import json
 import sys
+import warnings
 from pathlib import Path
 
 from mpi4py import MPI
@@ -30,6 +31,10 @@ from dolfin_mpm.explicit.solver import SimulationError
 from dolfin_mpm.io import checkpoint
 
 __all__ = ["main"]
+
+
+def _warn(comm, message) -> None:
+    print_root(comm, f"warning: {message}", file=sys.stderr)
 
 
 def _fail(comm, message: str, code: int) -> int:
@@ -201,4 +206,6 @@ def main(argv=None) -> int:
     args = parser().parse_args(argv)
     comm = MPI.COMM_WORLD
     command = {"check": _check, "run": _run, "resume": _resume}[args.command]
-    return command(args, comm)
+    with warnings.catch_warnings():  # a warning is one line on rank 0, as it comes
+        warnings.showwarning = lambda message, *_, **__: _warn(comm, message)
+        return command(args, comm)

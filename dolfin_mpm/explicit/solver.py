@@ -8,6 +8,7 @@ scenario runner and :meth:`Solver.run` both drive it.
 """
 
 import math
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import replace
 
@@ -99,6 +100,15 @@ class Solver:
         self.model = Model(grid, materials, list(bcs), g, opts)
         average = None if averaging is None else over_ranks(averaging, grid.comm)
         dt = self.critical_dt if opts.dt is None else float(opts.dt)
+        if dt > self.critical_dt:
+            warnings.warn(
+                f"dt = {dt:.4g} s is {dt / self.critical_dt:.3g} times the stable step "
+                f"{self.critical_dt:.4g} s "
+                f"(courant {opts.courant:g} x the smallest cell height / the largest p-wave speed): "
+                "the explicit step may blow up or give wrong results; leave dt unset to take the stable step",
+                RuntimeWarning,
+                stacklevel=2,
+            )
         self.state = State(particles, sinks, dt, average=average)
         self.timer = Timer()
 
