@@ -320,6 +320,30 @@ def test_a_live_run_folder_is_not_clobbered_and_a_stale_lock_is_taken_over(scena
     assert not lock.exists() and (folder / "checkpoint.h5").exists()
 
 
+def test_a_failed_write_leaves_no_temporary_and_a_killed_runs_ones_are_cleared(scenario_file, tmp_path):
+    from dolfin_mpm.app.runner import WRITTEN_ATOMICALLY, replace_atomically
+
+    path = tmp_path / "history.csv"
+    path.write_text("as it was")
+
+    def fails(tmp):
+        tmp.write_text("half")
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    with pytest.raises(OSError, match="No space"):
+        replace_atomically(path, fails)
+    assert path.read_text() == "as it was" and sorted(p.name for p in tmp_path.iterdir()) == ["history.csv"]
+    # A run killed while writing leaves its temporaries: the next run in the folder removes them.
+    folder = tmp_path / "run"
+    folder.mkdir()
+    for name in WRITTEN_ATOMICALLY:
+        (folder / f"{name}.tmp").write_text("left by a killed run")
+    (folder / "notes.tmp").write_text("not ours")
+    end = "time.end=0.006"
+    assert main(["run", str(scenario_file), "--output", str(folder), "--quiet", "--set", end]) == 0
+    assert [p.name for p in folder.glob("*.tmp")] == ["notes.tmp"]
+
+
 def test_history_counts_are_whole_numbers_and_a_resume_cannot_go_back_in_time(
     scenario_file, reference, capsys
 ):

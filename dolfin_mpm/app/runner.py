@@ -13,6 +13,7 @@ import os
 import signal
 import socket
 import sys
+from collections.abc import Callable
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -121,15 +122,15 @@ class Runner:
         self._guard(self.folder / "history.csv", self._write_history)
 
     def _write_history(self) -> None:
-        path = self.folder / "history.csv"
-        tmp = path.with_name(path.name + ".tmp")
-        with open(tmp, "w", newline="") as f:
-            w = csv.writer(f)
-            w.writerow(HISTORY)
-            counts = [k in ("step", "particles") for k in HISTORY]  # whole numbers, also after a resume
-            rows = zip(*(self.history[k] for k in HISTORY))
-            w.writerows([int(v) if count else v for v, count in zip(row, counts)] for row in rows)
-        os.replace(tmp, path)
+        def write(tmp: Path) -> None:
+            with open(tmp, "w", newline="") as f:
+                w = csv.writer(f)
+                w.writerow(HISTORY)
+                counts = [k in ("step", "particles") for k in HISTORY]  # whole numbers, also after a resume
+                rows = zip(*(self.history[k] for k in HISTORY))
+                w.writerows([int(v) if count else v for v, count in zip(row, counts)] for row in rows)
+
+        replace_atomically(self.folder / "history.csv", write)
 
     def _snapshot(self) -> None:
         s, field = self.sim.solver, self.sim.config["output"]["figure_field"]
@@ -282,6 +283,8 @@ class FolderLock:
                 return f"cannot lock the run folder {self.path.parent} ({e.strerror or e})"
             with os.fdopen(fd, "w") as f:
                 json.dump(me, f)
+            for name in WRITTEN_ATOMICALLY:  # what a killed run was writing: never renamed, never read
+                (self.path.parent / f"{name}.tmp").unlink(missing_ok=True)
             return None
         return f"cannot lock the run folder {self.path.parent}"
 
@@ -305,9 +308,25 @@ def _alive(pid) -> bool:
 def write_run_info(folder: Path, scenario_text: str, info: dict) -> None:
     """Store the scenario text and how it was run (``run.json``) in ``folder``, atomically."""
     for name, text in (("scenario.toml", scenario_text), ("run.json", json.dumps(info, indent=1))):
-        tmp = folder / f"{name}.tmp"
-        tmp.write_text(text)
-        os.replace(tmp, folder / name)
+        replace_atomically(folder / name, lambda tmp, text=text: tmp.write_text(text))
+
+
+#: The files a run writes through a temporary beside them (``<name>.tmp``).
+WRITTEN_ATOMICALLY = (CHECKPOINT, "history.csv", "scenario.toml", "run.json")
+
+
+def replace_atomically(path: Path, write: Callable[[Path], None]) -> None:
+    """``write`` the file ``path`` as ``<path>.tmp`` then rename it: ``path`` is whole or as it was.
+
+    A failed write removes its temporary and raises its error.
+    """
+    tmp = path.with_name(path.name + ".tmp")
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
 
 
 def print_root(comm, *args, file=sys.stdout) -> None:
