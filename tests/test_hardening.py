@@ -428,3 +428,22 @@ def test_a_step_above_the_stable_one_is_warned_in_one_line(capsys):
     assert main(["check", str(BAR), "--set", "solver.dt=1.0"]) == 0
     out, err = capsys.readouterr()
     assert err.startswith("warning: dt = 1 s is") and err.count("\n") == 1 and "Traceback" not in out + err
+
+
+def test_the_fuzz_campaign_runs_small(monkeypatch, capsys):
+    """``scripts/fuzz_campaign.py`` (mutated shipped scenarios, checked and run) on a few cases."""
+    import importlib.util
+    import sys
+
+    spec = importlib.util.spec_from_file_location(
+        "fuzz_campaign", DEMOS.parent / "scripts" / "fuzz_campaign.py"
+    )
+    campaign = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(campaign)
+    monkeypatch.setattr(sys, "argv", ["fuzz_campaign", "--cases", "12", "--seed", "7"])
+    assert campaign.main_campaign() == 0
+    summary = capsys.readouterr().out.strip().splitlines()[-1]
+    assert (
+        summary.startswith("12 cases (seed 7)")
+        and "0 with a traceback, a hang or another exit code" in summary
+    )
