@@ -75,6 +75,7 @@ def test_3d_block_under_gravity():
     assert -m0 * 9.81 * solver.time * (1 + 1e-12) <= pz < 0.0
 
 
+@pytest.mark.filterwarnings("ignore:dt = .* the stable step:RuntimeWarning")  # free flight, on purpose
 def test_particles_leaving_the_grid():
     grid = dm.Grid(rectangle((0, 0), (1, 1), (5, 5)))
     mat = dm.LinearElastic(E=1e3, nu=0.3, rho=1.0)
