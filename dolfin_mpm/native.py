@@ -87,8 +87,8 @@ def _compile(compiler: list[str], source: Path, library: Path) -> None:
 def array(dtype) -> type:
     """The ctypes argument type of a C-contiguous numpy array of ``dtype``: passes its data pointer.
 
-    Raises ``TypeError`` for anything else. (numpy's ``ndpointer`` checks the same at three
-    times the cost, a tenth of a small step's time.)
+    Raises ``TypeError`` for anything else. (numpy's ``ndpointer`` checks the same at about three
+    times the cost per array.)
     """
     dtype = np.dtype(dtype)
 

@@ -107,19 +107,9 @@ def particles_to_grid(
     m, p, f = np.zeros(basis.num_nodes), np.zeros((basis.num_nodes, gdim)), np.zeros((basis.num_nodes, gdim))
     sigma = component_first(np.asarray(sigma, dtype=np.float64))
     _kernels().p2g(
-        len(mass),
-        gdim,
-        basis.dofs,
-        basis.N,
-        basis.dN,
-        _as_real(mass),
-        _as_real(v),
-        sigma,
-        _as_real(volume),
-        m,
-        p,
-        f,
-    )
+        len(mass), gdim, basis.dofs, basis.N, basis.dN, _as_real(mass), _as_real(v), sigma, _as_real(volume),
+        m, p, f,
+    )  # fmt: skip
     return m, p, f
 
 

@@ -259,8 +259,8 @@ def stop_at_walls(walls: list, x: np.ndarray, dx: np.ndarray, v: np.ndarray, tim
     candidates = _near_lines(x, walls, limits, time)  # only these can reach a wall
     for w, advance, limit in zip(walls, advances, limits):
         phi0 = w.distance(x[candidates], time)
-        idx = candidates[phi0 < limit]
-        phi0 = phi0[phi0 < limit]
+        reaches = phi0 < limit
+        idx, phi0 = candidates[reaches], phi0[reaches]
         phi1 = phi0 - dx[idx, 0] * w.normal[0] - dx[idx, 1] * w.normal[1] + advance
         cross = (phi1 < 0.0) & (phi0 >= -ROUNDOFF * w.length)  # those stopped before too
         idx, phi0, phi1 = idx[cross], phi0[cross], phi1[cross]

@@ -103,8 +103,8 @@ class Solver:
         if dt > self.critical_dt:
             warnings.warn(
                 f"dt = {dt:.4g} s is {dt / self.critical_dt:.3g} times the stable step "
-                f"{self.critical_dt:.4g} s "
-                f"(courant {opts.courant:g} x the smallest cell height / the largest p-wave speed): "
+                f"{self.critical_dt:.4g} s (courant {opts.courant:g} x the smallest cell height / the "
+                "largest p-wave speed): "
                 "the explicit step may blow up or give wrong results; leave dt unset to take the stable step",
                 RuntimeWarning,
                 stacklevel=2,
