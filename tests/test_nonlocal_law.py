@@ -1,10 +1,10 @@
 """The non-local laws: their fixed points are what each law states, and bad input is named.
 
-The laws are iterated here as the step iterates them (the correction of the trial ``q``, mixed
-by Anderson acceleration), on a cloud of points with given trial states; the converged
-increments are then checked against the laws' own statements, written from the end states
-alone: the paper's ``d = A u`` with ``u`` the rate of each end state, the overstress law's
-``d = c <A x>`` with the end states' overstress.
+The laws are solved here as the step solves them (the paper's by semismooth Newton, the
+overstress law's correction of the trial ``q`` by Anderson acceleration), on a cloud of points
+with given trial states; the converged increments are then checked against the laws' own
+statements, written from the end states alone: the paper's ``d = A u`` with ``u`` the rate of
+each end state, the overstress law's ``d = c <A x>`` with the end states' overstress.
 """
 
 import numpy as np
@@ -12,6 +12,7 @@ import pytest
 from mpi4py import MPI
 
 from dolfin_mpm.averaging import NonlocalAverage, NonlocalLaw
+from dolfin_mpm.averaging.complementarity import solve_rates
 from dolfin_mpm.averaging.nonlocal_average import ball_weight
 from dolfin_mpm.explicit.anderson import Anderson
 from dolfin_mpm.materials import DruckerPragerViscoplastic
@@ -35,14 +36,13 @@ def cloud(seed=0, n=24):
 
 
 def iterate(law, average, trial, steps=400, tol=1e-13):
-    """The law's correction iterated to its fixed point; returns the applied increments."""
+    """The overstress law's correction iterated to its fixed point; returns the increments."""
     two_G = np.full(len(trial.q), 2.0 * SAND.G)
     y = SAND.yield_value(trial)
     dq, mixer = np.zeros(len(trial.q)), Anderson(5, MPI.COMM_SELF)
     for _ in range(steps):
-        u = SAND.increment(Trial(trial.p, trial.s, np.maximum(trial.q + dq, 0.0)), {}, DT)
-        d = law.applied(u, dq, two_G)
-        nxt = law.correction(average, u, d, trial.q, two_G, y)
+        d = SAND.increment(Trial(trial.p, trial.s, np.maximum(trial.q + dq, 0.0)), {}, DT)
+        nxt = law.correction(average, d, trial.q, two_G, y)
         if np.linalg.norm(nxt - dq) <= tol * np.linalg.norm(trial.q):
             return d
         dq = mixer(dq, nxt)
@@ -61,8 +61,12 @@ def test_paper_law_relaxes_by_the_average_of_the_end_states_rates(boundary_corre
     x, volume, trial = cloud()
     average = NonlocalAverage(0.1, "wendland", boundary_correction=boundary_correction)
     average.update(x, volume, np.arange(len(x)))
-    d = iterate(NonlocalLaw("paper"), average, trial)
+    d, u_solved, stats = solve_rates(
+        average, lambda u: SAND.increment_of_rate(trial, u, DT), np.zeros(len(x)), MPI.COMM_SELF, 1e-14
+    )
+    assert stats["converged"] and stats["newton"] <= 10
     u, _ = rate_of_end_state(trial, d)
+    assert np.abs(u - u_solved).max() <= 1e-9 * u.max()
     expected = average(u)
     assert np.abs(d - expected).max() <= 1e-9 * d.max()
     # The law acts: the band's points relax by less than their own rate, the flanks by more.

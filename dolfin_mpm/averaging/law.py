@@ -9,40 +9,30 @@ in how it acts:
   Neighbours drag a point into flow; the band's core follows its local law.
 - ``"paper"``: the stress is relaxed by the averaged rate, ``q = q_trial - 2 G d``,
   ``d = A u``, and each ``u`` is the rate of its point's own end state (eq. 5 read with the
-  end-of-step stresses): ``u_i = c Phi(x_i(q_trial,i - 2 G d_i))``.
+  end-of-step stresses): ``u_i = c Phi(x_i(q_trial,i - 2 G d_i))``. A point at its cone's
+  apex is stress free (``d_i >= q_trial,i / 2G``) and takes the rate its neighbourhood needs.
 - ``"overstress"``: the averaged variable is inside the overstress function,
   ``d_i = c Phi(A x)_i``, ``q_i = q_trial,i - 2 G d_i`` (a non-local yield rule, Strömberg &
   Ristinmaa 1996); ``x = q / y - 1`` is signed, so points below the cone lower their
   neighbours' overstress, and is 0 at the apex (``y <= 0``, where a point is stress free).
 
-The last two couple every point to its neighbours through its end state. Written with the
-non-local part as a correction ``dq`` of the trial ``q`` [Pa] that the point's own return
-takes, each is one local return per point:
+The last two couple every point to its neighbours through its end state. The paper's law is
+a complementarity problem in the rates, solved in each iterate of the step's loop by
+semismooth Newton (:mod:`dolfin_mpm.averaging.complementarity`); the loop then iterates the
+internal forces alone. Both need a positive-definite weight: with it ``A`` is a P-matrix and
+the paper's law has one solution. Wendland's weight is (the least eigenvalue of the average on
+a lattice of spacing r/2 is +0.20; cubic -0.04, Gaussian -0.03, constant -0.33), and the laws
+take it alone (:data:`dolfin_mpm.averaging.nonlocal_average.WEIGHTS`).
 
-    paper:       u = return(q_trial + dq),  d = u - dq / 2G,  dq = -2 G (A u - u)
-    overstress:  d = return(q_trial + dq),                    dq = y (A x - x)
-
-(``return`` is the material's backward-Euler increment with the trial ``q`` replaced, the
-local law when ``dq = 0``). The step's fixed-point loop iterates ``dq`` together with the
-internal forces, with the same Anderson acceleration, until both stop changing: the
-averaged rate then equals the average of the rates the end states give, to the loop's
-tolerance. The correction of a step starts the next one.
-
-Why it converges, and only with a positive-definite weight: linearised about the flowing
-points, one pass maps an error ``e`` of ``dq`` to ``(I - A) B e`` for both laws, with
-``B = diag(a / (1 + a))``, ``a = 3 G gamma dt / y`` (0 where a point stays elastic). The
-eigenvalues of ``A`` lie in ``[lambda_min, 1]``, so those of the pass lie in
-``[0, (1 - lambda_min) max a / (1 + a))``: below 1 if ``lambda_min >= 0``. Smooth fields
-(``A e = e``) are corrected at once, fields that alternate from point to point contract by
-``a / (1 + a)`` a pass, which the acceleration takes care of. With the cubic, Gaussian or
-constant weight ``lambda_min < 0`` (-0.04, -0.03, -0.33 on a lattice of spacing r/2), and
-where ``a`` is large (near free surfaces ``y = m p -> 0``; ``a`` ~ 30 in the silo's fill) the
-pass grows those fields: the silo on h = 5 mm with the cubic weight left 1584 of 4576 steps
-unconverged. Wendland's weight is positive definite (``lambda_min > 0``), and the laws take it
-alone (:data:`dolfin_mpm.averaging.nonlocal_average.WEIGHTS`). Its ``lambda_min`` falls towards
-0 as r spans more particles (0.20, 0.026, 0.005 at 2, 3, 4 spacings), and the contraction
-approaches 1: with r of 4 spacings (r = 10 mm on the silo's 5 mm mesh) the loop stalls on the
-changes of the active set and leaves steps unconverged (807 of 4576; ``docs/numerics.md``).
+The overstress law is iterated as a correction ``dq`` of the trial ``q`` [Pa] that each
+point's own return takes, ``d = return(q_trial + dq)``, ``dq = y (A x - x)`` (``return`` is the
+material's backward-Euler increment with the trial ``q`` replaced), together with the internal
+forces under the loop's Anderson acceleration. Linearised, one pass maps an error ``e`` of
+``dq`` to ``(I - A) B e``, ``B = diag(a / (1 + a))``, ``a = 3 G gamma dt / y``: a contraction if
+``A`` has no negative eigenvalue, but one that approaches 1 where ``a`` is large and r spans
+many particles (``lambda_min`` of Wendland's average is 0.20, 0.026, 0.005 at 2, 3, 4
+spacings). That is why the paper's law, iterated this way, left steps unconverged (807 of
+4576 with r = 10 mm on the silo's 5 mm mesh; ``docs/numerics.md``) and is now solved directly.
 
 The over-non-local mix ``d = m A u + (1 - m) u``, ``m > 1`` (Vermeer & Brinkgreve 1994), is
 not among them: written the same way its iteration stalls at a relative change of 1e-2,
@@ -81,32 +71,17 @@ class NonlocalLaw:
         """Whether the law couples the end states (all but ``"max"``): the loop iterates it."""
         return self.name != "max"
 
-    def applied(self, u: np.ndarray, dq: np.ndarray, two_G: np.ndarray) -> np.ndarray:
-        """The increment the stress applies [-] from the returns ``u`` of the corrected trials.
-
-        All ``shape=(n,)``; ``dq`` [Pa], ``two_G`` = 2 G of each point [Pa]. Kept >= 0: a
-        viscoplastic multiplier cannot be negative; the fixed point ``d = A u`` is >= 0, only
-        an iterate on the way may not be.
-        """
-        if self.name == "overstress":
-            return u
-        return np.maximum(u - dq / two_G, 0.0)
-
-    def correction(self, average, u, d, q_trial, two_G, y) -> np.ndarray:
-        """The next correction ``dq`` [Pa] of the trial ``q``, ``shape=(n,)``.
+    def correction(self, average, d, q_trial, two_G, y) -> np.ndarray:
+        """The overstress law's next correction ``dq`` [Pa] of the trial ``q``, ``shape=(n,)``.
 
         Args:
             average: the non-local average ``A`` (a callable on particle fields).
-            u: the returns of the corrected trials [-] (each point's own rate times dt).
-            d: the applied increments [-].
+            d: the applied increments [-], the returns of the corrected trials.
             q_trial: the trial ``q`` [Pa].
             two_G: 2 G of each point [Pa].
-            y: the yield value of ``q`` of each point [Pa] (``<= 0`` at the apex); only the
-                ``"overstress"`` law reads it.
+            y: the yield value of ``q`` of each point [Pa] (``<= 0`` at the apex).
 
         """
-        if self.name == "overstress":
-            q = np.maximum(q_trial - two_G * d, 0.0)
-            x = np.divide(q, y, out=np.ones_like(q), where=y > 0.0) - 1.0  # 0 at the apex
-            return np.where(y > 0.0, y * (average(x) - x), 0.0)
-        return -two_G * (average(u) - u)
+        q = np.maximum(q_trial - two_G * d, 0.0)
+        x = np.divide(q, y, out=np.ones_like(q), where=y > 0.0) - 1.0  # 0 at the apex
+        return np.where(y > 0.0, y * (average(x) - x), 0.0)

@@ -84,12 +84,13 @@ class Solver:
             raise ValueError(f"particles.material must index the {len(materials)} materials")
         particles.ensure_state({k: v for m in materials for k, v in m.state_fields().items()})
         if averaging is not None and averaging.law.iterative:
-            if averaging.law.name == "overstress":
-                lacking = [type(m).__name__ for m in materials if m.plastic and not hasattr(m, "yield_value")]
-                if lacking:
-                    raise ValueError(
-                        f"the overstress law needs a yield value of q, which {lacking} do not give"
-                    )
+            needs, what = {
+                "overstress": ("yield_value", "a yield value of q"),
+                "paper": ("increment_of_rate", "the increment of a given rate (a viscous law)"),
+            }[averaging.law.name]
+            lacking = [type(m).__name__ for m in materials if m.plastic and not hasattr(m, needs)]
+            if lacking:
+                raise ValueError(f"the {averaging.law.name} law needs {what}, which {lacking} do not give")
             particles.ensure_state({CORRECTION: ()})
         ids.number(grid.comm, particles)
         #: The largest stable time step [s]: ``courant * h_min / max p-wave speed``.

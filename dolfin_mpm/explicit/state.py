@@ -13,9 +13,10 @@ from dolfin_mpm.core.particles import Particles, Sink
 
 __all__ = ["FIXED_POINT_STATISTICS", "State"]
 
-#: Counters of the fixed-point loop: steps looped, iterations in all, most in one step, and
-#: steps that reached the iteration limit.
-FIXED_POINT_STATISTICS = ("steps", "iterations", "max_iterations", "unconverged")
+#: Counters of the fixed-point loop: steps looped, iterations in all, most in one step, steps
+#: that reached the iteration limit, and the Newton and GMRES iterations of the paper's law
+#: (:mod:`dolfin_mpm.averaging.complementarity`).
+FIXED_POINT_STATISTICS = ("steps", "iterations", "max_iterations", "unconverged", "newton", "krylov")
 
 
 @dataclass

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 
+from dolfin_mpm.averaging.complementarity import solve_rates
 from dolfin_mpm.core.grid import Grid
 from dolfin_mpm.core.locate import Basis, basis_at, locate
 from dolfin_mpm.core.particles import Particles
@@ -57,8 +58,9 @@ STAGES = (
     "return_mapping", "averaging", "stress", "internal_force", "convergence", "move",
 )  # fmt: skip
 
-#: The particle state field of an iterative non-local law's correction of the trial ``q`` [Pa]
-#: (:mod:`dolfin_mpm.averaging.law`): each step starts from the last one's.
+#: The particle state field an iterative non-local law starts each step from, the last step's
+#: end: the rates ``u`` [-] of the paper's law (:mod:`dolfin_mpm.averaging.complementarity`),
+#: the overstress law's correction of the trial ``q`` [Pa] (:mod:`dolfin_mpm.averaging.law`).
 CORRECTION = "nonlocal_correction"
 
 
@@ -234,6 +236,15 @@ class Constitutive:
             parts.append(material.increment(trial, state, dt))
         return self._gather(P, parts)
 
+    def increments_of_rates(self, P: Particles, trials: list, u: np.ndarray, dt: float) -> tuple[np.ndarray, ...]:
+        """Each particle's increment whose end state has the rate ``u``, and minus its slope.
+
+        See ``increment_of_rate`` of the materials (:mod:`dolfin_mpm.averaging.complementarity`);
+        all ``shape=(n,)``.
+        """
+        parts = [m.increment_of_rate(t, u[idx], dt) for (m, idx, _), t in zip(self.groups, trials)]
+        return self._gather(P, [d for d, _ in parts]), self._gather(P, [s for _, s in parts])
+
     def law_fields(self, P: Particles, trials: list, overstress: bool) -> tuple[np.ndarray, ...]:
         """What a non-local law reads of the trial states, each ``shape=(n,)``.
 
@@ -335,8 +346,10 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         scale_F = math.sqrt(comm.allreduce(float(nodal.f_ext[:owned] @ nodal.f_ext[:owned]), MPI.SUM))
         mixer = Anderson(options.anderson_depth, comm)
         converged = False
-        if law.iterative:  # the correction of the trial q, from the last step's end
-            dq_in, weight = P.state[CORRECTION].copy(), None
+        if law.iterative:  # the law's unknown, from the last step's end
+            guess, weight = P.state[CORRECTION].copy(), None
+            dq_in = guess
+    paper, overstress = (law is not None and law.name == name for name in ("paper", "overstress"))
     constitutive = Constitutive(model.materials, P)
     applied = None
     if law is not None and law.iterative:
@@ -347,8 +360,19 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         v, v_grid, L, v_node = g2p(model, P, basis, nodal, v_node, a_node, dt)
         timer.lap("g2p")
         trials = constitutive.trials(P, L, dt)
-        if law is not None and law.iterative:
-            q_trial, apex, y = constitutive.law_fields(P, trials, law.name == "overstress")
+        if paper:  # the rates by semismooth Newton, from the last iterate's (or step's)
+            u_trial = constitutive.law_fields(P, trials, False)[0] / two_G  # q_trial / 2G
+            timer.lap("return_mapping")
+            tol_u = options.fixed_point_tol * math.sqrt(comm.allreduce(float(u_trial @ u_trial), MPI.SUM))
+            of_rate = lambda u: constitutive.increments_of_rates(P, trials, u, dt)  # noqa: E731, B023
+            applied, de, inner = solve_rates(average, of_rate, guess if k == 1 else de, comm, tol_u)
+            de_bar = applied
+            state.fixed_point["newton"] += inner["newton"]
+            state.fixed_point["krylov"] += inner["krylov"]
+            timer.lap("averaging")
+            sigma = constitutive.stresses(P, trials, applied, None)
+        elif overstress:
+            q_trial, apex, y = constitutive.law_fields(P, trials, True)
             dq = dq_in
             de = constitutive.increments(P, trials, dt, dq)
             timer.lap("return_mapping")
@@ -356,9 +380,8 @@ def advance(model: Model, state: State, timer: Timer) -> None:
             # stress applies are what it absorbs, q_trial / 2G; its correction waits, untested,
             # for the point to leave the apex (points may cross it from one iterate to the next).
             de[apex] = q_trial[apex] / two_G[apex]
-            applied = de_bar = law.applied(de, dq, two_G)
-            applied[apex] = de[apex]
-            dq_next = law.correction(average, de, applied, q_trial, two_G, y)
+            applied = de_bar = de
+            dq_next = law.correction(average, applied, q_trial, two_G, y)
             timer.lap("averaging")
             sigma = constitutive.stresses(P, trials, applied, None)
         else:
@@ -378,17 +401,19 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         R = grid.assemble(grid.f_int, internal_force(basis, sigma, volume)).ravel()[:owned].copy()
         timer.lap("internal_force")
         sums = [(R - R_in) @ (R - R_in), R @ R]
-        if applied is not None:
+        if overstress:
             change = np.where(apex, 0.0, dq_next - dq)
             sums += [change @ change, q_trial @ q_trial]
         norms = np.sqrt(comm.allreduce(np.array(sums), MPI.SUM))
         tol = options.fixed_point_tol
         converged = norms[0] <= tol * max(norms[1], scale_F, 1e-300)
-        if applied is not None:  # and the correction, relative to the stresses it corrects
+        if overstress:  # and the correction, relative to the stresses it corrects
             converged &= norms[2] <= tol * max(norms[3], 1e-300)
+        elif paper:  # and the paper's law at every rank's points
+            converged &= comm.allreduce(inner["converged"], MPI.LAND)
         if not converged:
             R_next = R_in + options.relaxation * (R - R_in)
-            if applied is None:
+            if not overstress:
                 R_in = mixer(R_in, R_next)  # depth 0: R_next itself
             else:  # R and the correction mixed as one vector, each part scaled to its size
                 if weight is None:
@@ -410,8 +435,8 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         if options.extrapolation:
             state.R_changes = [R - R_start, *state.R_changes][: options.extrapolation]
         grid.refresh_ghosts(grid.f_int, R)  # the R of the stresses the step ends with
-        if applied is not None:
-            P.state[CORRECTION] = dq_next
+        if law.iterative:
+            P.state[CORRECTION] = dq_next if overstress else de
     state.reactions = reactions
     P.sigma, P.volume = sigma, volume
     constitutive.record(P, de, de_bar, dt, applied)

@@ -147,6 +147,26 @@ class DruckerPragerViscoplastic(RadialReturn):
         state["eps_vp_rate_nonlocal"][:] = (de if de_nonlocal is None else de_nonlocal) / dt
         state["eps_vp"][:] += applied_increment(de, de_nonlocal, applied)
 
+    def increment_of_rate(self, trial: Trial, u: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """The increment ``d`` [-] whose end state ``q = q_trial - 2 G d`` has the rate ``u`` [-].
+
+        The inverse of the Perzyna law ``u = dt 3/2 gamma Phi(q)``: ``q = y (1 + (u / c)^(1/N))``,
+        ``c = 3/2 gamma dt``, ``y`` the yield value; at the apex (``y <= 0``) the stress-free
+        state, ``d = q_trial / 2G``, whatever ``u``. Also returns ``-dd/du >= 0``, taken at
+        ``max(u, 1e-9 c)`` where ``N > 1`` makes it infinite at ``u = 0``. All ``shape=(n,)``;
+        the non-local law's solver uses these (:mod:`dolfin_mpm.averaging.complementarity`).
+        """
+        y = np.maximum(self.yield_value(trial), 0.0)
+        c = 1.5 * self.gamma * dt
+        two_G = 2.0 * self.G
+        if self.N == 1.0:
+            x, dx_du = u / c, np.full_like(u, 1.0 / c)
+        else:
+            x = (u / c) ** (1.0 / self.N)
+            w = np.maximum(u, 1e-9 * c) / c
+            dx_du = w ** (1.0 / self.N - 1.0) / (self.N * c)
+        return (trial.q - y * (1.0 + x)) / two_G, y * dx_du / two_G
+
     def yield_value(self, trial: Trial) -> np.ndarray:
         """The yield value of ``q`` at the trial pressure, ``m (p + c cot(phi))`` [Pa], ``shape=(n,)``."""
         return self.m * (trial.p + self.tension_limit)
