@@ -6,14 +6,15 @@ overstressed points around the cone.
 
 import numpy as np
 import pytest
+from dolfinx import mesh
 from mpi4py import MPI
+from test_nonlocal_law import DT, SAND, cloud
 
+import dolfin_mpm as dm
 from dolfin_mpm.averaging import NonlocalAverage
 from dolfin_mpm.averaging.complementarity import gmres, solve_rates
 from dolfin_mpm.materials import DruckerPragerViscoplastic
 from dolfin_mpm.materials.base import Trial
-
-from test_nonlocal_law import DT, SAND, cloud
 
 COMM = MPI.COMM_SELF
 
@@ -97,9 +98,6 @@ def test_other_viscosity_exponents_reach_the_law(N):
 
 
 def test_the_law_without_a_viscous_rate_is_refused():
-    import dolfin_mpm as dm
-    from dolfinx import mesh
-
     grid = dm.Grid(mesh.create_unit_square(MPI.COMM_WORLD, 4, 4))
     soil = dm.VonMises(E=1e6, nu=0.3, rho=1.0, sigma_y=1e3)
     P = dm.seed(grid, soil, ppc=1)

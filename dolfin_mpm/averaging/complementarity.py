@@ -65,7 +65,8 @@ def gmres(
             w = w - H[i, j] * v
         H[j + 1, j] = norm(w)
         for i in range(j):  # the earlier rotations, then this column's
-            H[i, j], H[i + 1, j] = cs[i] * H[i, j] + sn[i] * H[i + 1, j], -sn[i] * H[i, j] + cs[i] * H[i + 1, j]
+            a, b = H[i, j], H[i + 1, j]
+            H[i, j], H[i + 1, j] = cs[i] * a + sn[i] * b, -sn[i] * a + cs[i] * b
         r = math.hypot(H[j, j], H[j + 1, j])
         cs[j], sn[j] = H[j, j] / r, H[j + 1, j] / r
         g[j + 1], g[j] = -sn[j] * g[j], cs[j] * g[j]

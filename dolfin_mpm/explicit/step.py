@@ -236,7 +236,7 @@ class Constitutive:
             parts.append(material.increment(trial, state, dt))
         return self._gather(P, parts)
 
-    def increments_of_rates(self, P: Particles, trials: list, u: np.ndarray, dt: float) -> tuple[np.ndarray, ...]:
+    def increments_of_rates(self, P: Particles, trials: list, u: np.ndarray, dt: float) -> tuple:
         """Each particle's increment whose end state has the rate ``u``, and minus its slope.
 
         See ``increment_of_rate`` of the materials (:mod:`dolfin_mpm.averaging.complementarity`);
@@ -364,8 +364,9 @@ def advance(model: Model, state: State, timer: Timer) -> None:
             u_trial = constitutive.law_fields(P, trials, False)[0] / two_G  # q_trial / 2G
             timer.lap("return_mapping")
             tol_u = options.fixed_point_tol * math.sqrt(comm.allreduce(float(u_trial @ u_trial), MPI.SUM))
-            of_rate = lambda u: constitutive.increments_of_rates(P, trials, u, dt)  # noqa: E731, B023
-            applied, de, inner = solve_rates(average, of_rate, guess if k == 1 else de, comm, tol_u)
+            of_rate = lambda u: constitutive.increments_of_rates(P, trials, u, dt)  # noqa: E731
+            applied, de, inner = solve_rates(average, of_rate, guess, comm, tol_u)
+            guess = de  # the next iterate starts from these rates
             de_bar = applied
             state.fixed_point["newton"] += inner["newton"]
             state.fixed_point["krylov"] += inner["krylov"]
