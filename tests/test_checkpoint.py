@@ -3,10 +3,12 @@ the uninterrupted run ends; a failed checkpoint write leaves the last one intact
 
 import errno
 import io
+import shutil
 import signal
 import subprocess
 import sys
 import time
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import dolfin_mpm  # noqa: F401  (first: loads DOLFINx's libraries)
@@ -21,7 +23,7 @@ from dolfin_mpm import NonlocalAverage
 from dolfin_mpm.app import scenario
 from dolfin_mpm.app.cli import main
 from dolfin_mpm.explicit.progress import Progress
-from dolfin_mpm.io import checkpoint
+from dolfin_mpm.io import checkpoint, disk
 
 # Sand falls through a plate that opens at t = 5 ms into a sink: non-local averaging with
 # kept pairs, particles leaving, an event; about 330 steps.
@@ -355,3 +357,26 @@ def test_history_counts_are_whole_numbers_and_a_resume_cannot_go_back_in_time(
         assert values["step"].isdigit() and values["particles"].isdigit(), row
     assert main(["resume", str(folder), "--quiet", "--set", "time.end=0.01"]) == 2
     assert "before the checkpoint's t = 0.04" in capsys.readouterr().err
+
+
+def test_a_disk_that_fills_ends_the_run_cleanly_with_what_was_written_readable(
+    scenario_file, tmp_path, monkeypatch, capsys
+):
+    """HDF5 meeting a full disk halfway leaves its file open and crashes the interpreter at exit:
+    a write that would not fit is refused before it starts (room checked by ``io.disk``)."""
+    folder, calls = tmp_path / "run", []
+    usage = shutil.disk_usage(tmp_path)
+
+    def filling(path):  # room for the first three writes, then none
+        calls.append(path)
+        return usage._replace(free=usage.free if len(calls) <= 3 else disk.SPARE)
+
+    monkeypatch.setattr(disk.shutil, "disk_usage", filling)
+    assert main(["run", str(scenario_file), "--output", str(folder), "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert "No space left on device" in err and "bytes free in" in err and "Traceback" not in err
+    assert not list(folder.glob("*.tmp"))
+    for name in ("particles", "grid"):  # the series written so far open and agree
+        times = ET.parse(folder / f"{name}.xdmf").getroot().find("Domain/Grid")
+        with h5py.File(folder / f"{name}.h5", "r") as f:
+            assert len(times) >= 1 and (name == "grid" or len(f) == len(times))

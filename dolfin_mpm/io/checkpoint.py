@@ -21,6 +21,8 @@ import h5py
 import numpy as np
 from mpi4py import MPI
 
+from dolfin_mpm.io.disk import ensure_room, tree_bytes
+
 __all__ = ["FORMAT", "RESUMABLE", "CheckpointError", "read", "restore", "scenario_record", "write"]
 
 #: Layout version, stored in the file.
@@ -112,6 +114,7 @@ def write(path, sim, history: dict[str, np.ndarray]) -> None:
         path = Path(path)
         tmp = path.with_name(path.name + ".tmp")
         try:
+            ensure_room(path.parent, tree_bytes([parts, history]))
             with h5py.File(tmp, "w") as f:
                 attrs = {
                     "format": FORMAT,

@@ -13,6 +13,7 @@ import h5py
 import numpy as np
 
 from dolfin_mpm.core import compat
+from dolfin_mpm.io.disk import ensure_room, tree_bytes
 from dolfin_mpm.materials.tensor import invariants
 
 __all__ = ["Output", "XDMFSeries", "particle_fields"]
@@ -65,6 +66,9 @@ class XDMFSeries:
 
         """
         k = self.count
+        new = [] if static_mesh and k > 0 else [points, cells]
+        xml = self.path.stat().st_size if self.path.exists() else 0
+        ensure_room(self.path.parent, tree_bytes([*new, *fields.values()]) + 2 * xml)
         grid = ET.SubElement(self.series, "Grid", Name=f"t{k}", GridType="Uniform")
         ET.SubElement(grid, "Time", Value=repr(float(t)))
         mesh_group = "mesh" if static_mesh else f"step{k}"
