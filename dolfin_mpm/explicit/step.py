@@ -62,6 +62,10 @@ STAGES = (
 #: end: the rates ``u`` [-] of the paper's law (:mod:`dolfin_mpm.averaging.complementarity`),
 #: the overstress law's correction of the trial ``q`` [Pa] (:mod:`dolfin_mpm.averaging.law`).
 CORRECTION = "nonlocal_correction"
+#: The paper's law is solved to this part of the loop's tolerance: what is left of it reaches
+#: the loop as noise in ``R``. Solved to the full tolerance, 3 of the 4576 steps of the silo
+#: with r = 10 mm on h = 5 mm stalled at the iteration limit; at 0.3, none.
+LAW_TOL = 0.3
 
 
 class SimulationError(RuntimeError):
@@ -363,7 +367,8 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         if paper:  # the rates by semismooth Newton, from the last iterate's (or step's)
             u_trial = constitutive.law_fields(P, trials, False)[0] / two_G  # q_trial / 2G
             timer.lap("return_mapping")
-            tol_u = options.fixed_point_tol * math.sqrt(comm.allreduce(float(u_trial @ u_trial), MPI.SUM))
+            size = math.sqrt(comm.allreduce(float(u_trial @ u_trial), MPI.SUM))
+            tol_u = LAW_TOL * options.fixed_point_tol * size
             of_rate = lambda u: constitutive.increments_of_rates(P, trials, u, dt)  # noqa: E731
             applied, de, inner = solve_rates(average, of_rate, guess, comm, tol_u)
             guess = de  # the next iterate starts from these rates
