@@ -103,3 +103,14 @@ def test_the_law_without_a_viscous_rate_is_refused():
     P = dm.seed(grid, soil, ppc=1)
     with pytest.raises(ValueError, match=r"the paper law needs the increment of a given rate.*VonMises"):
         dm.Solver(grid, P, soil, averaging=dm.NonlocalAverage(0.3, "wendland", law="paper"))
+
+
+def test_the_rate_independent_limit_puts_the_flowing_points_on_their_cone():
+    sand = DruckerPragerViscoplastic(E=1e6, nu=0.3, rho=1500.0, phi=30.0, gamma=np.inf, N=2.0)
+    x, volume, trial = cloud(1)
+    d, u, stats = solve(trial, averaged(x, volume), material=sand, tol=1e-12)
+    assert stats["converged"] and np.all(np.isfinite(u))
+    q_end = trial.q - 2.0 * sand.G * d
+    y = sand.yield_value(trial)
+    assert np.abs(q_end - y)[u > 0.0].max() <= 1e-6 * y.max()  # flowing: on the cone
+    assert np.all(q_end[u == 0.0] <= y[u == 0.0] * (1 + 1e-9))  # still: inside it

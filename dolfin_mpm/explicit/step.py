@@ -350,9 +350,9 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         scale_F = math.sqrt(comm.allreduce(float(nodal.f_ext[:owned] @ nodal.f_ext[:owned]), MPI.SUM))
         mixer = Anderson(options.anderson_depth, comm)
         converged = False
-        if law.iterative:  # the law's unknown, from the last step's end
-            guess, weight = P.state[CORRECTION].copy(), None
-            dq_in = guess
+        if law.iterative:  # from the last step's end: the paper's rates, the overstress correction
+            guess = dq_in = P.state[CORRECTION].copy()
+            weight = None  # the overstress correction's scale in the mixed iterate
     paper, overstress = (law is not None and law.name == name for name in ("paper", "overstress"))
     constitutive = Constitutive(model.materials, P)
     applied = None
