@@ -123,7 +123,9 @@ def solve_rates(
         flowing = s * r < u  # the rows where min(u, s r) takes s r
         # Still points go to u = 0; the flowing rows solve s (A du)_i + (1 - s) du_i = -s r_i.
         fixed = np.where(flowing, 0.0, -u)
-        rhs = np.where(flowing, -s * (r + average(fixed)), 0.0)
+        if comm.allreduce(bool(fixed.any()), MPI.LOR):  # collective: the average is
+            r = r + average(fixed)
+        rhs = np.where(flowing, -s * r, 0.0)
 
         def jacobian(v):
             v = np.where(flowing, v, 0.0)

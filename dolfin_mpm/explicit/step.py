@@ -238,7 +238,7 @@ class Constitutive:
             if dq is not None:
                 trial = Trial(trial.p, trial.s, np.maximum(trial.q + dq[idx], 0.0))
             parts.append(material.increment(trial, state, dt))
-        return self._gather(P, parts)
+        return self.gather(P, parts)
 
     def increments_of_rates(self, P: Particles, trials: list, u: np.ndarray, dt: float) -> tuple:
         """Each particle's increment whose end state has the rate ``u``, and minus its slope.
@@ -247,7 +247,7 @@ class Constitutive:
         all ``shape=(n,)``.
         """
         parts = [m.increment_of_rate(t, u[idx], dt) for (m, idx, _), t in zip(self.groups, trials)]
-        return self._gather(P, [d for d, _ in parts]), self._gather(P, [s for _, s in parts])
+        return self.gather(P, [d for d, _ in parts]), self.gather(P, [s for _, s in parts])
 
     def law_fields(self, P: Particles, trials: list, overstress: bool) -> tuple[np.ndarray, ...]:
         """What a non-local law reads of the trial states, each ``shape=(n,)``.
@@ -256,11 +256,11 @@ class Constitutive:
         for the overstress law, the yield value of ``q`` [Pa].
         """
         groups = [(m, t) for (m, _, _), t in zip(self.groups, trials)]
-        q = self._gather(P, [t.q for t in trials])
-        apex = self._gather(
+        q = self.gather(P, [t.q for t in trials])
+        apex = self.gather(
             P, [m.at_apex(t) if hasattr(m, "at_apex") else np.zeros(len(t.q)) for m, t in groups]
         )
-        y = self._gather(P, [m.yield_value(t) for m, t in groups]) if overstress else None
+        y = self.gather(P, [m.yield_value(t) for m, t in groups]) if overstress else None
         return q, apex > 0.0, y
 
     def two_G(self, P: Particles) -> np.ndarray:
@@ -269,7 +269,7 @@ class Constitutive:
             return np.full(len(P), 2.0 * self.materials[0].G)
         return 2.0 * np.array([m.G for m in self.materials])[P.material]
 
-    def _gather(self, P: Particles, parts: list) -> np.ndarray:
+    def gather(self, P: Particles, parts: list) -> np.ndarray:
         """One particle array from the groups' parts."""
         if len(parts) == 1:
             return parts[0]
@@ -353,7 +353,8 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         if law.iterative:  # from the last step's end: the paper's rates, the overstress correction
             guess = dq_in = P.state[CORRECTION].copy()
             weight = None  # the overstress correction's scale in the mixed iterate
-    paper, overstress = (law is not None and law.name == name for name in ("paper", "overstress"))
+    paper = law is not None and law.name == "paper"
+    overstress = law is not None and law.name == "overstress"
     constitutive = Constitutive(model.materials, P)
     applied = None
     if law is not None and law.iterative:
@@ -365,7 +366,7 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         timer.lap("g2p")
         trials = constitutive.trials(P, L, dt)
         if paper:  # the rates by semismooth Newton, from the last iterate's (or step's)
-            u_trial = constitutive.law_fields(P, trials, False)[0] / two_G  # q_trial / 2G
+            u_trial = constitutive.gather(P, [t.q for t in trials]) / two_G  # q_trial / 2G
             timer.lap("return_mapping")
             size = math.sqrt(comm.allreduce(float(u_trial @ u_trial), MPI.SUM))
             tol_u = LAW_TOL * options.fixed_point_tol * size
