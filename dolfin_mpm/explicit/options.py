@@ -6,13 +6,15 @@ import numpy as np
 
 from dolfin_mpm.params import check_fields, parameter
 
-__all__ = ["INTEGERS", "SCHEMES", "VOLUMETRIC", "Options"]
+__all__ = ["INTEGERS", "SCHEMES", "STRESS", "VOLUMETRIC", "Options"]
 
 #: Where the velocities that give the strain rate come from: re-mapped momentum (MUSL) or the
 #: nodal solve (USL).
 SCHEMES = ("MUSL", "USL")
 #: Where the volumetric strain rate comes from: each particle's cell, or the nodes' patches.
 VOLUMETRIC = ("cell", "nodal")
+#: The stress a particle carries into the next step: its own, or its cell's mean.
+STRESS = ("cell", "particle")
 
 
 #: The options that take whole numbers.
@@ -29,6 +31,9 @@ class Options:
             volumetric part averaged over the nodes' patches, against volumetric locking, see
             :mod:`dolfin_mpm.core.volumetric`; experimental: not yet verified, see
             ``docs/numerics.md``).
+        stress: ``"cell"`` (each particle takes the volume-weighted mean stress of its cell's
+            points of its material at the start of each step, which leaves the nodal forces
+            unchanged, see :mod:`dolfin_mpm.core.cell_stress`) or ``"particle"`` (its own).
         flip: FLIP fraction of the particle velocity update, in [0, 1] (1 = pure FLIP).
         damping: local non-viscous (Cundall) damping factor, in [0, 1).
         courant: Courant factor of the automatic time step, in (0, 1].
@@ -45,6 +50,7 @@ class Options:
 
     scheme: str = "MUSL"
     volumetric: str = "cell"
+    stress: str = "cell"
     flip: float = parameter(0.0, 1.0, closed=(True, True), default=1.0)
     damping: float = parameter(0.0, 1.0, closed=(True, False), default=0.0)
     courant: float = parameter(0.0, 1.0, closed=(False, True), default=0.5)
@@ -62,6 +68,8 @@ class Options:
             raise ValueError(f"scheme must be 'USL' or 'MUSL', got {self.scheme!r}")
         if self.volumetric not in VOLUMETRIC:
             raise ValueError(f"volumetric must be 'cell' or 'nodal', got {self.volumetric!r}")
+        if self.stress not in STRESS:
+            raise ValueError(f"stress must be 'cell' or 'particle', got {self.stress!r}")
         for name in INTEGERS:
             if not isinstance(getattr(self, name), (int, np.integer)):
                 raise ValueError(f"{name} must be an integer, got {getattr(self, name)!r}")

@@ -1,6 +1,6 @@
 """One explicit MPM step, the paper's §3, as a fixed sequence of stages.
 
-    sinks -> locate [-> migrate] -> basis -> P2G [-> neighbours]
+    sinks -> locate [-> migrate] -> basis [-> cell stress] -> P2G [-> neighbours]
       -> loop { nodal solve -> G2P -> return mapping [-> averaging] -> stress [-> R, test] }
       -> move
 
@@ -30,6 +30,7 @@ import numpy as np
 from mpi4py import MPI
 
 from dolfin_mpm.averaging.complementarity import solve_rates
+from dolfin_mpm.core.cell_stress import cell_mean_stress
 from dolfin_mpm.core.grid import Grid
 from dolfin_mpm.core.locate import Basis, basis_at, locate
 from dolfin_mpm.core.particles import Particles
@@ -54,7 +55,7 @@ __all__ = ["CORRECTION", "STAGES", "Model", "Nodal", "SimulationError", "advance
 
 #: The stages of :func:`advance` in their order; each step's times add up to the step.
 STAGES = (
-    "sinks", "locate", "migrate", "basis", "p2g", "neighbours", "nodal_solve", "g2p",
+    "sinks", "locate", "migrate", "basis", "cell_stress", "p2g", "neighbours", "nodal_solve", "g2p",
     "return_mapping", "averaging", "stress", "internal_force", "convergence", "move",
 )  # fmt: skip
 
@@ -333,6 +334,10 @@ def advance(model: Model, state: State, timer: Timer) -> None:
     P.cell = cells
     basis = basis_at(grid, cells, N)
     timer.lap("basis")
+    if options.stress == "cell":  # apart points stay stress free, out of the means
+        apart = P.state["free_volume"] > 0.0 if "free_volume" in P.state else None
+        P.sigma = cell_mean_stress(P.sigma, P.volume, cells, P.material, grid.num_cells, apart)
+        timer.lap("cell_stress")
     nodal = p2g(model, P, basis, state.time)
     timer.lap("p2g")
     if average is not None:
