@@ -52,6 +52,9 @@ friction_angle = 95.0
 radius = 0.1
 law = "overnonlocal"
 
+[solver]
+stress = "node"
+
 [time]
 end = -1.0
 
@@ -76,6 +79,7 @@ def test_every_problem_is_reported_with_its_toml_path(tmp_path):
         "bodies.block.ppc: must be a square number (1, 4, 9, ...) on triangles, got 3",
         "walls.floor.friction_angle: must be in [0, 90) degrees, got 95.0",
         "time.end: must be > 0 s, got -1.0",
+        'solver.stress: must be one of "cell", "particle", got "node"',
         'events[0].remove_walls: no wall named "gate" (walls: floor)',
     ]
     assert sorted(errors) == sorted(expected)
