@@ -776,7 +776,8 @@ def report(folder: Path, path: Path) -> str:
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for name, runs in studies.items():
-        out += [f"## Study: {name}", "", *header, *(row(r) for r in runs), ""]
+        table = [*header, *(row(r) for r in runs), ""] if name != "numerics" else []  # its own below
+        out += [f"## Study: {name}", "", *table]
         if missing[name]:
             out += ["Not run yet: " + ", ".join(f"`{key}`" for key in missing[name]) + ".", ""]
         if len(runs) < 2:

@@ -36,7 +36,8 @@ __all__ = ["Contact", "RigidWall", "contacts", "stop_at_walls"]
 
 #: Nodes within this fraction of the smallest cell height in front of a wall's line count as on it.
 ON_LINE = 1e-6
-#: A particle stopped on a wall may end this fraction of the wall's length behind it (round-off).
+#: A particle stopped on a wall lands this fraction of the wall's length in front of it, and one
+#: found as far behind it counts as on it (round-off).
 ROUNDOFF = 1e-12
 
 _REAL = native.array(np.float64)
@@ -271,7 +272,8 @@ def stop_at_walls(walls: list, x: np.ndarray, dx: np.ndarray, v: np.ndarray, tim
         along = (crossing - w.start(time)) @ w.tangent - (w.velocity @ w.tangent) * dt * share[:, 0]
         on = (along >= 0.0) & (along <= w.length)
         idx, phi1 = idx[on], phi1[on]
-        dx[idx, :2] += phi1[:, None] * w.normal
+        # on the wall, a round-off's width in front of it: x + dx rounded cannot land behind it
+        dx[idx, :2] += (phi1 - ROUNDOFF * w.length)[:, None] * w.normal
         vn = (v[idx, :2] - w.velocity) @ w.normal
         v[idx, :2] -= np.maximum(vn, 0.0)[:, None] * w.normal
         stopped += idx.size
