@@ -18,6 +18,7 @@ map time), so studies are resumed rather than repeated:
     python demos/demo_silo.py --study meshes       # h = 10, 5, 2.5 mm, local and non-local
     python demos/demo_silo.py --study radius       # r = 0, 2.5, 5, 10 mm on one mesh
     python demos/demo_silo.py --study weights      # cubic, constant, Gaussian at r = 5 mm
+    python demos/demo_silo.py --study numerics     # the volumetric rate and the stress, on and off
     python demos/demo_silo.py --study all --report docs/silo.md
 
 Runs and studies also run on several MPI ranks (``mpirun -n 2 python demos/demo_silo.py
