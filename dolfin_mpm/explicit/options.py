@@ -29,8 +29,8 @@ class Options:
         scheme: ``"MUSL"`` (velocities re-mapped before the strain rate) or ``"USL"``.
         volumetric: ``"cell"`` (each particle's own velocity gradient) or ``"nodal"`` (its
             volumetric part averaged over the nodes' patches, against volumetric locking, see
-            :mod:`dolfin_mpm.core.volumetric`; experimental: not yet verified, see
-            ``docs/numerics.md``).
+            :mod:`dolfin_mpm.core.volumetric`; for meshes of two triangles per square: it is
+            too soft on crossed squares, see ``docs/numerics.md``).
         stress: ``"cell"`` (each particle takes the volume-weighted mean stress of its cell's
             points of its material at the start of each step, which leaves the nodal forces
             unchanged, see :mod:`dolfin_mpm.core.cell_stress`) or ``"particle"`` (its own).
