@@ -10,9 +10,21 @@ removes that part alone: ``R`` is unchanged to round-off, and the mean of states
 convex yield surface (the Drucker-Prager cone) is inside it.
 """
 
+import ctypes
+from pathlib import Path
+
 import numpy as np
 
+from dolfin_mpm import native
+from dolfin_mpm.materials.tensor import component_first, particle_first
+
 __all__ = ["cell_mean_stress"]
+
+_REAL = native.array(np.float64)
+_kernels = native.kernels(
+    Path(__file__).with_suffix(".c"),
+    {"cell_mean": (ctypes.c_int64, ctypes.c_int64, native.array(np.int64), _REAL, _REAL, _REAL, _REAL)},
+)
 
 
 def cell_mean_stress(
@@ -30,23 +42,18 @@ def cell_mean_stress(
             ``shape=(n,)`` bool; ``None``: none.
 
     Returns:
-        A new array, ``shape=(n, 3, 3)``.
+        A new array, ``shape=(n, 3, 3)``, a particle-first view of component-first memory.
 
     """
     n = len(volume)
+    out = component_first(sigma).copy()  # (3, 3, n)
     if n == 0:
-        return sigma.copy()
+        return particle_first(out)
     groups = int(material.max()) + 1
-    key = cells.astype(np.int64) * groups + material
-    w = volume if keep is None else np.where(keep, 0.0, volume)
+    key = np.ascontiguousarray(cells, dtype=np.int64)
+    if groups > 1:
+        key = key * groups + material
+    w = np.ascontiguousarray(volume if keep is None else np.where(keep, 0.0, volume), dtype=np.float64)
     size = num_cells * groups
-    total = np.bincount(key, w, size)
-    flat = sigma.reshape(n, 9)
-    mean = np.empty((n, 9))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv = np.where(total > 0.0, 1.0 / total, 0.0)
-        for j in range(9):
-            mean[:, j] = (np.bincount(key, w * flat[:, j], size) * inv)[key]
-    if keep is not None:
-        mean[keep] = flat[keep]
-    return mean.reshape(n, 3, 3)
+    _kernels().cell_mean(n, size, key, w, out, np.zeros(size), np.zeros(9 * size))
+    return particle_first(out)
