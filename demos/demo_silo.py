@@ -167,16 +167,9 @@ def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, he
     )
     averaging = dm.NonlocalAverage(radius, weight, law=law)  # checks r >= 0; r = 0 is the local model
     solver = dm.Solver(
-        grid,
-        P,
-        sand,
-        bcs=[*walls, gate],
-        gravity=(0.0, -G),
-        sinks=[sink],
-        averaging=averaging,
-        volumetric=volumetric,
-        stress=stress,
-    )
+        grid, P, sand, bcs=[*walls, gate], gravity=(0.0, -G), sinks=[sink], averaging=averaging,
+        volumetric=volumetric, stress=stress,
+    )  # fmt: skip
     return solver, gate
 
 
@@ -265,21 +258,9 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, heig
     if not t_settle >= 0.0:
         raise ValueError(f"t_settle must be >= 0 s, got {t_settle!r}")
     solver, gate = build(
-        h,
-        radius,
-        weight,
-        wall_friction,
-        width,
-        height,
-        outlet,
-        ppc,
-        shift,
-        edge_cell,
-        comm=comm,
-        law=law,
-        volumetric=volumetric,
-        stress=stress,
-    )
+        h, radius, weight, wall_friction, width, height, outlet, ppc, shift, edge_cell, comm=comm, law=law,
+        volumetric=volumetric, stress=stress,
+    )  # fmt: skip
     m0 = solver.total_mass()
     t0 = time.perf_counter()
     # ## Settling on the closed outlet (damped), then the opening

@@ -334,9 +334,9 @@ def advance(model: Model, state: State, timer: Timer) -> None:
     P.cell = cells
     basis = basis_at(grid, cells, N)
     timer.lap("basis")
+    constitutive = Constitutive(model.materials, P)
     if options.stress == "cell":  # apart points stay stress free, out of the means
-        apart = P.state["free_volume"] > 0.0 if "free_volume" in P.state else None
-        P.sigma = cell_mean_stress(P.sigma, P.volume, cells, P.material, grid.num_cells, apart)
+        P.sigma = cell_mean_stress(P.sigma, P.volume, cells, P.material, grid.num_cells, constitutive.apart)
         timer.lap("cell_stress")
     nodal = p2g(model, P, basis, state.time)
     timer.lap("p2g")
@@ -360,7 +360,6 @@ def advance(model: Model, state: State, timer: Timer) -> None:
             weight = None  # the overstress correction's scale in the mixed iterate
     paper = law is not None and law.name == "paper"
     overstress = law is not None and law.name == "overstress"
-    constitutive = Constitutive(model.materials, P)
     applied = None
     if law is not None and law.iterative:
         two_G = constitutive.two_G(P)
