@@ -3,6 +3,7 @@ the uninterrupted run ends; a failed checkpoint write leaves the last one intact
 
 import errno
 import io
+import os
 import shutil
 import signal
 import subprocess
@@ -188,6 +189,69 @@ def test_sigint_sigterm_sigkill_and_resume_end_where_the_uninterrupted_run_ends(
     assert not (folder / "checkpoint.h5.tmp").exists() or _step_of(folder / "checkpoint.h5") > 0
     assert main(["resume", str(folder), "--quiet"]) == 0
     assert_same(state(folder), reference)
+
+
+def _launcher() -> list[str] | None:
+    """The launcher of this MPI: MPICH's ``mpiexec`` beside the interpreter, or ``mpirun``."""
+    beside = Path(sys.executable).parent / "mpiexec"
+    if beside.exists():
+        return [str(beside), "-n", "2"]
+    found = shutil.which("mpirun")
+    return None if found is None else [found, "-n", "2", "--oversubscribe"]
+
+
+def _ranks_of(folder: Path) -> list[int]:
+    """Processes whose command line names ``folder``: the run's ranks (and its launcher)."""
+    pids = []
+    for entry in Path("/proc").iterdir():
+        try:
+            if entry.name.isdigit() and str(folder) in (entry / "cmdline").read_text():
+                pids.append(int(entry.name))
+        except OSError:
+            pass
+    return pids
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux") or _launcher() is None, reason="Linux, a launcher")
+def test_under_a_launcher_a_signal_checkpoints_and_a_killed_launcher_takes_its_ranks(scenario_file, tmp_path):
+    """Ctrl-C to the launcher: a checkpoint and the documented status. SIGKILL to its process
+    group (Open MPI's ranks have groups of their own): no rank lives on to write."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("OMPI_", "PMIX_", "PMI_", "HYDRA_"))}
+    env.update(
+        OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", OMPI_MCA_rmaps_base_oversubscribe="1"
+    )
+    open_mpi = "Open MPI" in MPI.Get_library_version()
+
+    def start(folder):
+        command = [*_launcher(), sys.executable, "-m", "dolfin_mpm", "run", str(scenario_file), "--output",
+                   str(folder), "--quiet", "--set", "time.end=10"]  # fmt: skip
+        return subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                                start_new_session=True)  # fmt: skip
+
+    folder = tmp_path / "interrupted"
+    proc = start(folder)
+    step = _stop_after_checkpoint(proc, folder, 0, signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == (1 if open_mpi else 128 + signal.SIGINT), err
+    said = (
+        "stopped by SIGTERM (Open MPI's mpirun sends SIGTERM for Ctrl-C too)"
+        if open_mpi
+        else "stopped by SIGINT"
+    )
+    assert said in out and "Traceback" not in err
+    assert _step_of(folder / "checkpoint.h5") > step
+
+    folder = tmp_path / "killed"
+    proc = start(folder)
+    deadline = time.monotonic() + 120
+    while _step_of(folder / "checkpoint.h5") <= 0:
+        assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+        time.sleep(0.01)
+    assert len(_ranks_of(folder)) >= 3  # the launcher and two ranks
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.communicate(timeout=60)
+    time.sleep(0.2)  # the kernel's kill of the orphans is immediate; Open MPI's own takes ~1 s
+    assert _ranks_of(folder) == []
 
 
 def test_a_failed_checkpoint_write_keeps_the_last_one(scenario_file, tmp_path, monkeypatch, capsys):

@@ -6,7 +6,10 @@
 
 Exit status: 0 done, 1 the run failed (simulation or output), 2 bad input, 128 + signal
 number when stopped by SIGINT or SIGTERM (after writing a checkpoint). Under ``mpirun``
-every rank runs the same command; rank 0 prints.
+every rank runs the same command; rank 0 prints. The launcher sets its own status: MPICH's
+``mpiexec`` passes the ranks' on (130, 143); Open MPI's ``mpirun`` sends SIGTERM to the ranks
+for Ctrl-C as well, and exits with 1 (:mod:`dolfin_mpm.parallel.launcher`). Ranks die with
+their launcher.
 """
 
 import argparse
@@ -29,6 +32,7 @@ from dolfin_mpm.app.runner import (
 )
 from dolfin_mpm.explicit.solver import SimulationError
 from dolfin_mpm.io import checkpoint
+from dolfin_mpm.parallel.launcher import die_with_launcher, launcher_note
 
 __all__ = ["main"]
 
@@ -167,8 +171,8 @@ def _drive(runner: Runner, comm, folder: Path) -> int:
     try:
         runner.run()
     except Interrupted as e:
-        print_root(comm, f"\n{e} at step {s.step_count}, t = {s.time:.6g} s; checkpoint written. "
-                   f"Continue with: dolfin-mpm resume {folder}")  # fmt: skip
+        print_root(comm, f"\n{e}{launcher_note(comm, e.signum)} at step {s.step_count}, t = {s.time:.6g} s; "
+                   f"checkpoint written. Continue with: dolfin-mpm resume {folder}")  # fmt: skip
         return 128 + e.signum
     except (RunError, checkpoint.CheckpointError, SimulationError) as e:
         return _fail(comm, str(e), 1)
@@ -205,6 +209,7 @@ def main(argv=None) -> int:
     """Run the command line ``argv`` (default ``sys.argv[1:]``); returns the exit status."""
     args = parser().parse_args(argv)
     comm = MPI.COMM_WORLD
+    die_with_launcher(comm)  # no rank writes on after its launcher was killed
     command = {"check": _check, "run": _run, "resume": _resume}[args.command]
     with warnings.catch_warnings():  # a warning is one line on rank 0, as it comes
         warnings.showwarning = lambda message, *_, **__: _warn(comm, message)

@@ -1,0 +1,50 @@
+"""The ranks and their launcher: ranks that stop when ``mpirun`` dies, the launcher's signals.
+
+Open MPI's ``mpirun`` starts its ranks in process groups of their own, so a ``SIGKILL`` of
+``mpirun``'s group leaves them running until they notice the lost connection, about a second
+later, and they may write in the run folder meanwhile. Each rank therefore asks the kernel to
+kill it with its parent (Linux ``prctl(PR_SET_PDEATHSIG)``): what the last complete checkpoint
+holds is what a resume continues from.
+
+Signals reach the ranks as the launcher forwards them. MPICH's ``mpiexec`` forwards ``SIGINT``
+and ``SIGTERM`` as they are, and exits with the ranks' status (130, 143). Open MPI's ``mpirun``
+turns both into ``SIGTERM`` for every rank and exits with 1 itself; the ranks still write their
+checkpoint first.
+"""
+
+import ctypes
+import ctypes.util
+import os
+import signal
+import sys
+
+from mpi4py import MPI
+
+__all__ = ["die_with_launcher", "launcher_note"]
+
+_PR_SET_PDEATHSIG = 1
+
+
+def die_with_launcher(comm) -> bool:
+    """On Linux under a launcher (``comm.size > 1``), let the kernel kill this rank with its parent.
+
+    Returns:
+        Whether the request was made. A rank whose parent is already gone stops at once.
+
+    """
+    if comm.size == 1 or not sys.platform.startswith("linux"):
+        return False
+    libc = ctypes.CDLL(ctypes.util.find_library("c"), use_errno=True)
+    parent = os.getppid()
+    if libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0) != 0:
+        return False
+    if os.getppid() != parent:  # the parent died before the request: it will never fire
+        os.kill(os.getpid(), signal.SIGKILL)
+    return True
+
+
+def launcher_note(comm, signum: int) -> str:
+    """What to add to "stopped by SIGTERM" when Open MPI's ``mpirun`` may have sent it for a Ctrl-C."""
+    if comm.size > 1 and signum == signal.SIGTERM and "Open MPI" in MPI.Get_library_version():
+        return " (Open MPI's mpirun sends SIGTERM for Ctrl-C too)"
+    return ""
