@@ -10,7 +10,10 @@ see), cases over the time limit (a hang), and the peak memory of the process. Di
 the suite's fuzz (``tests/test_hardening.py``), which sets values of one scenario with
 ``--set``.
 
-    python scripts/fuzz_campaign.py [--cases 1000] [--seed 1] [--timeout 60]
+    python scripts/fuzz_campaign.py [--cases 1000] [--seed 1] [--timeout 60] [--accepted]
+
+``--accepted`` lists the changes of every case the check accepted, with its run's exit code:
+whether an accepted input runs with the physics it says is for a reader to judge.
 """
 
 import argparse
@@ -180,9 +183,10 @@ def main_campaign() -> int:
     parser.add_argument("--cases", type=int, default=1000)
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--timeout", type=float, default=60.0, help="seconds per command")
+    parser.add_argument("--accepted", action="store_true", help="list the accepted cases' changes")
     args = parser.parse_args()
     rng = np.random.default_rng(args.seed)
-    checks, runs, bad = Counter(), Counter(), []
+    checks, runs, bad, accepted = Counter(), Counter(), [], []
     work = Path(tempfile.mkdtemp(prefix="fuzz-"))
     start = time.perf_counter()
     try:
@@ -210,12 +214,15 @@ def main_campaign() -> int:
             folder = work / f"run{case}"
             code, text = call(["run", str(path), "--output", str(folder), "--quiet"], args.timeout)
             runs[code] += 1
+            accepted.append(f"case {case} ({source.name}: {'; '.join(changes)}): run gave {code}")
             if code not in (0, 1, 2) or "Traceback" in text:
                 bad.append((case, source.name, changes, "run", code, text[-2000:]))
             shutil.rmtree(folder, ignore_errors=True)
     finally:
         shutil.rmtree(work, ignore_errors=True)
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    if args.accepted:
+        print("\n".join(accepted))
     for case, name, changes, what, code, text in bad:
         print(f"case {case} ({name}: {'; '.join(changes)}): {what} gave {code}\n{text}\n", file=sys.stderr)
     print(

@@ -19,9 +19,9 @@ if [ ! -x "$VENV/bin/python" ]; then
   echo "Creating $VENV from $PY"
   "$PY" -m venv "$VENV"
 fi
-if ! "$VENV/bin/python" -c "import dolfinx_solver, scipy, h5py, meshio, matplotlib, pytest" 2>/dev/null; then
+if ! "$VENV/bin/python" -c "import dolfinx_solver, scipy, h5py, meshio, matplotlib, pytest, hypothesis" 2>/dev/null; then
   "$VENV/bin/python" -m pip install -q --upgrade pip
-  "$VENV/bin/python" -m pip install -q dolfinx-solver-real scipy h5py meshio matplotlib pytest
+  "$VENV/bin/python" -m pip install -q dolfinx-solver-real scipy h5py meshio matplotlib pytest hypothesis
 fi
 "$VENV/bin/python" -m pip install -q --no-deps -e . 2>&1 | grep -v -i warning || true
 "$VENV/bin/python" -c "import dolfin_mpm, dolfinx; print('dolfin_mpm on DOLFINx', dolfinx.__version__)"

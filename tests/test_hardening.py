@@ -4,6 +4,7 @@ Every bad input gives a ScenarioError naming its TOML path (and, through the CLI
 traceback); a few bounds keep expressions and sizes from hanging or exhausting memory.
 """
 
+import signal
 import time
 import warnings
 from pathlib import Path
@@ -13,6 +14,8 @@ import dolfin_mpm  # noqa: F401  (first: loads DOLFINx's libraries)
 # isort: split
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from dolfin_mpm.app import scenario
 from dolfin_mpm.app.cli import main
@@ -305,7 +308,7 @@ def test_cli_check_exits_2_on_sizes_and_bad_files(tmp_path, capsys, monkeypatch)
     assert "bad.toml: not UTF-8 text" in err and "Traceback" not in out + err
 
 
-# -- fuzz: anything generated gives a build or a ScenarioError -----------------------------------
+# -- fuzz: anything generated is checked and run through the CLI with exit 0, 1 or 2 -------------
 _ATOMS = ["x", "y", "z", "pi", "e", "inf", "0", "1", "0.5", "2.5", "1e308", "-1", "100", "101", "nan", "foo",
           "True", "'s'", "1j", "__builtins__", "sin", "(x > 0.1)", "(y <= 0.02)"]  # fmt: skip
 _UNARY = ["-", "~", "not ", "+", "*"]
@@ -313,24 +316,6 @@ _BINARY = ["+", "-", "*", "/", "//", "%", "**", "&", "|", "^", " < ", " > ", " <
            " and ", " or ", " << ", " @ ", " if x else ", ", ", "."]  # fmt: skip
 _CALLS = ["sin", "sqrt", "log", "exp", "where", "hypot", "minimum", "maximum", "abs", "arctan2", "eval",
           "open", "getattr", "x.real"]  # fmt: skip
-
-
-def _expression(rng, depth: int) -> str:
-    r = rng.random()
-    if depth <= 0 or r < 0.25:
-        return str(rng.choice(_ATOMS))
-    if r < 0.4:
-        return str(rng.choice(_UNARY)) + _expression(rng, depth - 1)
-    if r < 0.75:
-        return _expression(rng, depth - 1) + str(rng.choice(_BINARY)) + _expression(rng, depth - 1)
-    if r < 0.85:
-        return f"({_expression(rng, depth - 1)})"
-    args = [_expression(rng, depth - 1) for _ in range(rng.integers(0, 4))]
-    if rng.random() < 0.1:
-        args.append("out=x")
-    return f"{rng.choice(_CALLS)}({', '.join(args)})"
-
-
 _NUMBERS = ["nan", "inf", "-inf", "1e308", "-1e308", "0", "-1", "1e-320", "0.5", "3", "4", "100",
             "4611686018427387904", '"text"', "true", "{}", "[]"]  # fmt: skip
 _KEYS = {
@@ -339,60 +324,109 @@ _KEYS = {
     "walls.clamp.region.min": 2, "walls.clamp.region.max": 2, "solver.gravity": 2, "solver.dt": 1,
     "solver.courant": 1, "time.start": 1, "time.end": 1, "output.interval": 1, "solver.damping": 1,
     "bodies.bar.stress.surface": 1, "bodies.bar.stress.K0": 1, "walls.rollers.friction_angle": 1,
+    "solver.flip": 1, "solver.scheme": 1, "solver.stress": 1, "solver.volumetric": 1,
 }  # fmt: skip
 _EXPRESSION_KEYS = ["walls.clamp.region", "bodies.bar.region", "sinks.drain.region"]
 
 
-def _condition(rng) -> str:
-    """A comparison of two generated terms: often a valid region."""
-    return f"({_expression(rng, 2)}) {rng.choice(['<', '>=', '!='])} ({_expression(rng, 2)})"
+def _expressions():
+    """Expressions of the grammar's pieces, valid or not: the whitelist's input."""
+    leaf = st.sampled_from(_ATOMS)
+
+    def grow(inner):
+        calls = st.tuples(st.sampled_from(_CALLS), st.lists(inner, max_size=3), st.booleans())
+        return st.one_of(
+            st.tuples(st.sampled_from(_UNARY), inner).map("".join),
+            st.tuples(inner, st.sampled_from(_BINARY), inner).map("".join),
+            inner.map(lambda a: f"({a})"),
+            calls.map(lambda c: f"{c[0]}({', '.join([*c[1], *(['out=x'] if c[2] else [])])})"),
+        )
+
+    return st.recursive(leaf, grow, max_leaves=8)
 
 
-def _overrides(rng) -> list[str]:
+def _numbers():
+    """Values for number keys: the awkward ones, any float (nan and inf too), huge integers."""
+    return st.one_of(
+        st.sampled_from(_NUMBERS),
+        st.floats(allow_nan=True, allow_infinity=True).map(repr),
+        st.integers(min_value=-(2**70), max_value=2**70).map(str),
+    )
+
+
+@st.composite
+def _overrides(draw) -> list[str]:
     out = []
-    for _ in range(rng.integers(1, 3)):
-        if rng.random() < 0.5:
-            key = str(rng.choice(_EXPRESSION_KEYS))
-            text = _condition(rng) if rng.random() < 0.5 else _expression(rng, int(rng.integers(1, 5)))
-            out.append(f"{key}={text!r}")
-        elif rng.random() < 0.3:
-            parts = [
-                _expression(rng, 2) if rng.random() < 0.5 else str(rng.choice(_NUMBERS)) for _ in range(2)
-            ]
-            out.append(
-                "bodies.bar.velocity=[" + ", ".join(p if p in _NUMBERS else repr(p) for p in parts) + "]"
-            )
+    for _ in range(draw(st.integers(1, 3))):
+        kind = draw(st.sampled_from(["expression", "condition", "velocity", "value"]))
+        if kind in ("expression", "condition"):
+            text = draw(_expressions())
+            if kind == "condition":
+                text = f"({text}) {draw(st.sampled_from(['<', '>=', '!=']))} ({draw(_expressions())})"
+            out.append(f"{draw(st.sampled_from(_EXPRESSION_KEYS))}={text!r}")
+        elif kind == "velocity":
+            part = st.one_of(_expressions().map(repr), st.sampled_from(_NUMBERS))
+            parts = draw(st.lists(part, min_size=2, max_size=2))
+            out.append(f"bodies.bar.velocity=[{', '.join(parts)}]")
         else:
-            key = str(rng.choice(list(_KEYS)))
-            values = [str(rng.choice(_NUMBERS)) for _ in range(_KEYS[key])]
+            key = draw(st.sampled_from(sorted(_KEYS)))
+            values = draw(st.lists(_numbers(), min_size=_KEYS[key], max_size=_KEYS[key]))
             out.append(f"{key}=" + (values[0] if len(values) == 1 else "[" + ", ".join(values) + "]"))
     if any(o.startswith("bodies.bar.stress") for o in out):
         out += ['bodies.bar.stress.type="geostatic"', "solver.gravity=[0.0, -9.81]"]
     return out
 
 
+class _Hang(Exception):
+    pass
+
+
+def _alarm(signum, frame):
+    raise _Hang
+
+
 @pytest.mark.filterwarnings("ignore:dt = .* the stable step:RuntimeWarning")  # drawn dt may exceed it
-def test_fuzz_every_input_builds_or_is_a_scenario_error(monkeypatch):
-    """200 generated scenarios (expressions and values): a build or a ScenarioError, nothing else."""
+def test_fuzz_the_cli_exits_0_1_or_2_without_traceback_hang_or_stray_files(tmp_path, monkeypatch, capsys):
+    """300 generated scenarios (expressions and values, fixed seed): ``check`` exits 0 or 2 and an
+    accepted one runs two steps with exit 0 or 1 (a named simulation error), each with no
+    traceback, within 20 s, writing nothing outside its output folder."""
     monkeypatch.setattr(scenario, "available_memory", lambda: 20e6)  # sizes stay small and quick
-    rng = np.random.default_rng(20240607)
-    start, outcomes = time.perf_counter(), {"built": 0, "refused": 0}
-    for _ in range(200):
-        overrides = _overrides(rng)
+    monkeypatch.chdir(tmp_path)  # where results/ would go
+    previous = signal.signal(signal.SIGALRM, _alarm)
+    outcomes = {"refused": 0, "ran": 0, "failed": 0}
+
+    @settings(max_examples=300, derandomize=True, deadline=None, database=None, print_blob=True,
+              suppress_health_check=list(HealthCheck))  # fmt: skip
+    @given(_overrides())
+    def case(overrides):
+        sets = [a for o in overrides for a in ("--set", o)]
+        signal.alarm(20)
         try:
-            sim = scenario.build(scenario.load(BAR, overrides))
-        except scenario.ScenarioError as e:
-            assert e.errors and all(": " in line for line in e.errors), (overrides, e.errors)
-            outcomes["refused"] += 1
-            continue
-        except Exception as e:  # pragma: no cover - what the test is for
-            pytest.fail(f"{overrides}: {type(e).__name__}: {e}")
-        s = sim.solver
-        assert np.all(np.isfinite(s.particles.v)) and 0.0 < s.dt < np.inf, overrides
-        outcomes["built"] += 1
+            code = main(["check", str(BAR), *sets])
+            out, err = capsys.readouterr()
+            assert code in (0, 2) and "Traceback" not in out + err, (overrides, code, err)
+            if code == 2:
+                assert err.startswith("error: "), err
+                outcomes["refused"] += 1
+                return
+            folder = tmp_path / "run"
+            steps = ["--set", "time.end=0", "--set", "time.start=-2e-9", "--set", "output.figures=false"]
+            code = main(["run", str(BAR), *sets, *steps, "--output", str(folder), "--force", "--quiet"])
+            out, err = capsys.readouterr()
+            assert code in (0, 1, 2) and "Traceback" not in out + err, (overrides, code, err)
+            outcomes["ran" if code == 0 else "failed"] += 1
+        except _Hang:
+            pytest.fail(f"{overrides}: no answer within 20 s")
+        finally:
+            signal.alarm(0)
+        assert sorted(p.name for p in tmp_path.iterdir()) in ([], ["run"]), overrides
+
+    try:
+        case()
+    finally:
+        signal.signal(signal.SIGALRM, previous)
     print(outcomes)
-    assert outcomes["built"] >= 10 and outcomes["refused"] >= 100, outcomes
-    assert time.perf_counter() - start < 20.0
+    assert outcomes["refused"] >= 100 and outcomes["ran"] >= 10, outcomes
 
 
 @pytest.mark.parametrize(
@@ -428,6 +462,16 @@ def test_a_step_above_the_stable_one_is_warned_in_one_line(capsys):
     assert main(["check", str(BAR), "--set", "solver.dt=1.0"]) == 0
     out, err = capsys.readouterr()
     assert err.startswith("warning: dt = 1 s is") and err.count("\n") == 1 and "Traceback" not in out + err
+
+
+def test_the_stable_step_counts_the_particles_speed():
+    """A step carries neither a wave nor a particle across more than courant of a cell: an initial
+    velocity of 1e308 m/s gives a step count that is refused, not an overflow at step 1."""
+    at_rest = scenario.build(scenario.load(BAR, ["bodies.bar.velocity=[0.0, 0.0]"])).solver
+    moving = scenario.build(scenario.load(BAR, ["bodies.bar.velocity=[-40.0, 30.0]"])).solver
+    c = at_rest.materials[0].p_wave_speed()
+    assert moving.critical_dt == pytest.approx(at_rest.critical_dt * c / (c + 50.0), rel=1e-12)
+    _refused(["bodies.bar.velocity=[-1e308, -1]"], "time.end", "would take more than")
 
 
 def test_the_fuzz_campaign_runs_small(monkeypatch, capsys):

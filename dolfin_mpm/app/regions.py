@@ -11,6 +11,7 @@ exhaust memory, and it is evaluated on copies of the coordinates.
 """
 
 import ast
+import warnings
 
 import numpy as np
 
@@ -189,10 +190,11 @@ class Expression:
         x = np.asarray(x, dtype=np.float64)
         names = {**FUNCTIONS, **{c: x[i].copy() for i, c in enumerate(_COORDINATES)}}
         try:
-            with np.errstate(all="ignore"):
+            with np.errstate(all="ignore"), warnings.catch_warnings():
+                warnings.simplefilter("error")  # numpy's warnings (+ of a condition) are failures
                 value = eval(self._code, {"__builtins__": {}}, names)  # the tree checked in __init__
             return np.array(np.broadcast_to(np.asarray(value), (x.shape[1],)))  # own memory: DOLFINx reads it
-        except (ArithmeticError, TypeError, ValueError, MemoryError) as e:
+        except (ArithmeticError, TypeError, ValueError, MemoryError, Warning) as e:
             raise ValueError(f"expression {self.text!r} fails: {e}") from None
 
     def numbers(self, x: np.ndarray) -> np.ndarray:

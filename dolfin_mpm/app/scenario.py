@@ -994,8 +994,8 @@ def _step_errors(cfg: dict, dt: float) -> list[str]:
         if cfg["solver"]["dt"] is not None:
             return [f"solver.dt: the time step is {dt:g} s, not a positive finite number"]
         return [
-            f"mesh: the time step courant * smallest cell height / p-wave speed is {dt:g} s, "
-            "not a positive finite number"
+            f"mesh: the time step courant * smallest cell height / (p-wave speed + particle speed) "
+            f"is {dt:g} s, not a positive finite number"
         ]
     start, end = cfg["time"]["start"], cfg["time"]["end"]
     steps, scale = (end - start) / dt, max(abs(start), abs(end)) / dt

@@ -37,7 +37,8 @@ class Options:
         flip: FLIP fraction of the particle velocity update, in [0, 1] (1 = pure FLIP).
         damping: local non-viscous (Cundall) damping factor, in [0, 1).
         courant: Courant factor of the automatic time step, in (0, 1].
-        dt: time step [s], > 0; ``None``: ``courant * h_min / max p-wave speed``.
+        dt: time step [s], > 0; ``None``: ``courant * h_min / (max p-wave speed + max particle
+            speed at the start)``.
         mass_tol: nodes lighter than ``mass_tol * max nodal mass`` are left at rest, in [0, 1).
         on_exit: ``"error"`` to stop when a particle leaves the grid, or the sink receiving it.
         fixed_point_tol: loop tolerance on the relative change of ``R``, > 0.

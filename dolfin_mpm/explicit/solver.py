@@ -93,10 +93,14 @@ class Solver:
                 raise ValueError(f"the {averaging.law.name} law needs {what}, which {lacking} do not give")
             particles.ensure_state({CORRECTION: ()})
         ids.number(grid.comm, particles)
-        #: The largest stable time step [s]: ``courant * h_min / max p-wave speed``.
-        self.critical_dt = (
-            opts.courant * grid.comm.allreduce(grid.h_min, MPI.MIN) / max(m.p_wave_speed() for m in materials)
-        )
+        # The waves travel at the p-wave speed through material that itself moves: a step may
+        # carry neither a wave nor a particle across more than ``courant`` of a cell.
+        top = float(np.max(np.abs(particles.v), initial=0.0))  # scaled: 1e308 m/s does not overflow
+        speed = top * float(np.sqrt(np.max(np.sum((particles.v / top) ** 2, axis=1)))) if top > 0 else 0.0
+        speed = grid.comm.allreduce(speed, MPI.MAX)
+        #: The largest stable time step [s]: ``courant * h_min / (max p-wave speed + max particle speed)``.
+        h_min = grid.comm.allreduce(grid.h_min, MPI.MIN)
+        self.critical_dt = opts.courant * h_min / (max(m.p_wave_speed() for m in materials) + speed)
         _check_walls(grid, particles, bcs)
         self.model = Model(grid, materials, list(bcs), g, opts)
         average = None if averaging is None else over_ranks(averaging, grid.comm)
@@ -105,7 +109,7 @@ class Solver:
             warnings.warn(
                 f"dt = {dt:.4g} s is {dt / self.critical_dt:.3g} times the stable step "
                 f"{self.critical_dt:.4g} s (courant {opts.courant:g} x the smallest cell height / the "
-                "largest p-wave speed): "
+                "largest p-wave speed and particle speed): "
                 "the explicit step may blow up or give wrong results; leave dt unset to take the stable step",
                 RuntimeWarning,
                 stacklevel=2,
