@@ -273,6 +273,29 @@ def test_a_file_that_is_not_utf8_or_not_a_file_is_named(tmp_path):
         scenario.apply_overrides({}, ["a=" + "[" * 5000 + "]" * 5000])
 
 
+@pytest.mark.parametrize(
+    "name, content, fragment",
+    [
+        ("garbage.xdmf", b"garbage\x00\x01", "is not an XDMF file (not well-formed"),
+        ("empty.xdmf", b"", "is not an XDMF file (no element found"),
+        ("no_extension", b"hello", "is not a mesh file meshio reads (ReadError"),
+        ("broken.msh", b"$MeshFormat\ngarbage\n", "is not a mesh file meshio reads"),
+    ],
+)
+def test_a_mesh_file_that_is_not_a_mesh_is_named(tmp_path, capsys, name, content, fragment):
+    """Each of these ended in a reader's traceback (exit 1)."""
+    (tmp_path / name).write_bytes(content)
+    text = BAR.read_text()
+    start = text.index("[mesh]")
+    end = text.index("\n[", start) + 1
+    path = tmp_path / "bar.toml"
+    path.write_text(f'{text[:start]}[mesh]\nshape = "file"\nfile = "{tmp_path / name}"\n\n{text[end:]}')
+    assert main(["check", str(path)]) == 2
+    out, err = capsys.readouterr()
+    assert err.startswith(f"error: mesh.file: {tmp_path / name} ") and fragment in err, err
+    assert "Traceback" not in out + err
+
+
 # -- through the command line --------------------------------------------------------------------
 @pytest.mark.parametrize(
     "overrides, expected",

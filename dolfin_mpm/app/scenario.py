@@ -818,7 +818,8 @@ def build(cfg: dict, comm=MPI.COMM_WORLD) -> Simulation:
     try:
         grid = Grid(_make_mesh(cfg["mesh"], comm))
     except (ValueError, RuntimeError, OSError, MemoryError) as e:
-        raise ScenarioError([f"mesh: {str(e) or 'out of memory'}"]) from None
+        key = "mesh.file" if cfg["mesh"]["shape"] == "file" else "mesh"
+        raise ScenarioError([f"{key}: {str(e) or 'out of memory'}"]) from None
     if grid.gdim != cfg["mesh"]["gdim"]:
         raise ScenarioError(
             [f"mesh.gdim: the mesh has dimension {grid.gdim}, the scenario says {cfg['mesh']['gdim']}"]

@@ -151,12 +151,15 @@ def read_mesh(comm, path, gdim: int):
     cells of dimension ``gdim`` (triangles or tetrahedra) and the first ``gdim`` coordinates.
 
     Raises:
-        ValueError: the file holds no such cells.
+        ValueError: the file is not a mesh of its format, or holds no such cells.
 
     """
     path = Path(path)
     if path.suffix == ".xdmf":
-        grids = ET.parse(path).getroot().iter("Grid")
+        try:
+            grids = ET.parse(path).getroot().iter("Grid")
+        except ET.ParseError as e:
+            raise ValueError(f"{path} is not an XDMF file ({e})") from None
         name = next((g.get("Name") for g in grids if g.get("GridType", "Uniform") == "Uniform"), "mesh")
         from dolfinx.io import XDMFFile
 
@@ -164,10 +167,18 @@ def read_mesh(comm, path, gdim: int):
             return f.read_mesh(name=name)
     meshio_name = _MESHIO_CELLS[gdim][0]
     cells, x = np.zeros((0, gdim + 1), np.int64), np.zeros((0, gdim))
+    m, error = None, None
     if comm.rank == 0:
         import meshio
 
-        m = meshio.read(path)
+        try:
+            m = meshio.read(path)
+        except Exception as e:  # meshio's readers fail in many ways on a file that is not a mesh
+            error = f"{path} is not a mesh file meshio reads ({type(e).__name__}: {e})"
+    error = comm.bcast(error, root=0)
+    if error:
+        raise ValueError(error)
+    if m is not None:
         blocks = [b.data for b in m.cells if b.type == meshio_name]
         if blocks:
             cells = np.concatenate(blocks).astype(np.int64)
