@@ -487,6 +487,18 @@ def test_a_step_above_the_stable_one_is_warned_in_one_line(capsys):
     assert err.startswith("warning: dt = 1 s is") and err.count("\n") == 1 and "Traceback" not in out + err
 
 
+@pytest.mark.parametrize("normal", ["[0.0, 1e308]", "[0.0, 7.0]"])
+def test_a_frictional_wall_whose_normal_points_into_the_material_is_refused(normal):
+    """A campaign's case: the floor's normal flipped by an overflowing or large component let
+    the column fall through the floor (a unilateral wall holds only what lies behind its normal)."""
+    collapse = DEMOS / "column_collapse.toml"
+    with pytest.raises(scenario.ScenarioError) as info:
+        scenario.build(scenario.load(collapse, [f"walls.floor.normal={normal}"]))
+    (error,) = info.value.errors
+    assert error.startswith("walls.floor.normal: ") and "points into the material (50 of the 50" in error
+    scenario.build(scenario.load(collapse, ["walls.floor.normal=[0.0, -1e308]"]))  # out of it: accepted
+
+
 def test_the_stable_step_counts_the_particles_speed():
     """A step carries neither a wave nor a particle across more than courant of a cell: an initial
     velocity of 1e308 m/s gives a step count that is refused, not an overflow at step 1."""

@@ -926,6 +926,15 @@ def build(cfg: dict, comm=MPI.COMM_WORLD) -> Simulation:
         elif w["type"] == "frictional":
             mu = math.tan(math.radians(w["friction_angle"]))
             walls[name] = [FrictionalWall(nodes, normal=tuple(w["normal"]), mu=mu)]
+            if particles is not None:  # unilateral: a normal into the material lets it through
+                reach = comm.allreduce(float(np.max(grid.cell_height, initial=0.0)), MPI.MAX)
+                into, out = comm.allreduce(np.array(walls[name][0].sides(grid.node_x, particles.x, reach)))
+                if into > out:
+                    errors.append(
+                        f"walls.{name}.normal: {_show(w['normal'])} points into the material ({into} of "
+                        f"the {into + out} particles within a cell of its nodes lie on the side it points "
+                        "to): a frictional wall's normal points out of the material, into the wall"
+                    )
         else:
             walls[name] = [VelocityBC(nodes, velocity=np.array(w["velocity"]))]
     errors = _agree(comm, errors)

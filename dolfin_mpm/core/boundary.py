@@ -135,3 +135,21 @@ class FrictionalWall(BoundaryCondition):
 
     def apply(self, v):
         v[self.nodes] = coulomb(v[self.nodes], self.normal, self.mu)
+
+    def sides(self, node_x: np.ndarray, x: np.ndarray, reach: float) -> tuple[int, int]:
+        """Local counts of the points ``x`` within ``reach`` [m] of the wall's nodes, by side.
+
+        First those on the side the normal points to (into the wall: there should be none), then
+        those on the other. ``node_x``: the grid's node coordinates, ``shape=(num_nodes, k)``;
+        ``x``: ``(n, k)``, ``k >= gdim`` (the first ``gdim`` are read).
+        """
+        if len(self.nodes) == 0 or len(x) == 0:
+            return 0, 0
+        from scipy.spatial import cKDTree
+
+        gdim = len(self.normal)
+        wall, x = node_x[self.nodes, :gdim], x[:, :gdim]
+        distance, nearest = cKDTree(wall).query(x, distance_upper_bound=reach)
+        near = np.isfinite(distance)
+        d = (x[near] - wall[nearest[near]]) @ np.asarray(self.normal)
+        return int(np.sum(d > 1e-9 * reach)), int(np.sum(d < -1e-9 * reach))
