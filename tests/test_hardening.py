@@ -499,6 +499,16 @@ def test_a_frictional_wall_whose_normal_points_into_the_material_is_refused(norm
     scenario.build(scenario.load(collapse, ["walls.floor.normal=[0.0, -1e308]"]))  # out of it: accepted
 
 
+@pytest.mark.parametrize("surface", ["-1.0", "0.15"])
+def test_a_geostatic_surface_below_the_body_is_refused(surface):
+    """A campaign's case: surface = -1 m put the whole column in tension, and it was accepted."""
+    with pytest.raises(scenario.ScenarioError) as info:
+        overrides = [f"bodies.column.stress.surface={surface}"]
+        scenario.build(scenario.load(DEMOS / "column_collapse.toml", overrides))
+    (error,) = info.value.errors
+    assert error.startswith(f"bodies.column.stress.surface: {surface} m lies below the body's top particle")
+
+
 def test_the_stable_step_counts_the_particles_speed():
     """A step carries neither a wave nor a particle across more than courant of a cell: an initial
     velocity of 1e308 m/s gives a step count that is refused, not an overflow at step 1."""

@@ -878,6 +878,13 @@ def build(cfg: dict, comm=MPI.COMM_WORLD) -> Simulation:
             mat = materials[k]
             K0 = b["stress"]["K0"] if b["stress"]["K0"] is not None else mat.nu / (1.0 - mat.nu)
             g = math.hypot(*gravity)
+            surface = b["stress"]["surface"]
+            top = comm.allreduce(float(np.max(P.x[:, grid.gdim - 1], initial=-INF)), MPI.MAX)
+            if surface < top:
+                errors.append(
+                    f"bodies.{name}.stress.surface: {_show(surface)} m lies below the body's top particle "
+                    f"at {top:.6g} m: the geostatic stress would be tension above it"
+                )
             with np.errstate(all="ignore"):
                 P.sigma = geostatic_stress(P.x, mat.rho, g, b["stress"]["surface"], K0, grid.gdim)
             if not np.all(np.isfinite(P.sigma)):
