@@ -329,7 +329,7 @@ def replace_atomically(path: Path, write: Callable[[Path], None]) -> None:
         raise
 
 
-def print_root(comm, *args, file=sys.stdout) -> None:
-    """``print`` on rank 0 only."""
+def print_root(comm, *args, file=None) -> None:
+    """``print`` on rank 0 only (``file``: ``sys.stdout`` as it is at the call)."""
     if comm.rank == 0:
-        print(*args, file=file, flush=True)
+        print(*args, file=sys.stdout if file is None else file, flush=True)
