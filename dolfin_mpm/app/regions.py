@@ -166,11 +166,16 @@ class Expression:
             raise ValueError(f"expression is {len(text)} characters long, at most {MAX_LENGTH} allowed")
         shown = text if len(text) <= 80 else text[:77] + "..."
         try:
-            tree = ast.parse(text.strip(), "<expression>", "eval")
-            problem = _check(tree)
-            if problem is None:
-                # Whole numbers as floats: no exact (unbounded) integer arithmetic at run time.
-                self._code = compile(ast.fix_missing_locations(_Floats().visit(tree)), "<expression>", "eval")
+            with warnings.catch_warnings():
+                warnings.simplefilter("error")  # Python's warnings on the text (~ of a bool) refuse it
+                tree = ast.parse(text.strip(), "<expression>", "eval")
+                problem = _check(tree)
+                if problem is None:
+                    # Whole numbers as floats: no exact (unbounded) integer arithmetic at run time.
+                    tree = ast.fix_missing_locations(_Floats().visit(tree))
+                    self._code = compile(tree, "<expression>", "eval")
+        except Warning as e:
+            raise ValueError(f"invalid expression {shown!r}: {e}") from None
         except SyntaxError as e:
             raise ValueError(f"invalid expression {shown!r}: {e.msg}") from None
         except (RecursionError, MemoryError):
