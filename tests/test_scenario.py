@@ -252,3 +252,15 @@ def test_column_collapse_runs_to_its_end_without_inflating(tmp_path):
     assert np.all(P.volume <= P.mass / rho_c * (1 + 1e-12))
     assert np.all(np.linalg.norm(P.v, axis=1) < 3.0)  # m/s: no point flung out
     assert 0.3 < np.percentile(P.x[:, 0], 99) < 0.5  # the deposit's front [m]
+
+
+def test_a_run_started_whole_steps_before_zero_is_at_zero_exactly():
+    """Adding dt 170 times from -170 dt left t = 1.6e-17 where the gate opens; the times are
+    now whole multiples of dt, as the steps are."""
+    s = scenario.build(scenario.load(DEMOS / "silo.toml", ["time.end=0.001"])).solver
+    k = -s.time / s.dt
+    assert k == round(k) > 100
+    s.run_until(0.0)
+    assert s.time == 0.0 and s.step_count == round(k)
+    s.run_until(0.001)
+    assert s.time == (s.step_count - round(k)) * s.dt

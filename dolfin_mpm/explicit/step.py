@@ -460,10 +460,21 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         P.x[:, c] += dx[:, c]
     for f, a in ((grid.velocity, v_node), (grid.acceleration, a_node), (grid.f_contact, f_contact)):
         f.x.array[:] = a.ravel()
-    state.time += dt
+    state.time = _after(state.time, dt)
     state.step += 1
     _check_finite(state)
     timer.lap("move")
+
+
+def _after(time: float, dt: float) -> float:
+    """``time + dt`` [s], exactly ``k dt`` where it is that to round-off.
+
+    A run started whole steps before t = 0 is at 0 there, not at the 1e-17 s that adding ``dt``
+    k times leaves.
+    """
+    t = time + dt
+    k = round(t / dt)
+    return k * dt if abs(t - k * dt) <= 1e-9 * dt else t
 
 
 def _leave_grid(options: Options, state: State, cells: np.ndarray, N: np.ndarray):
