@@ -78,7 +78,7 @@ def grid_lines(lo: float, hi: float, h: float, fine: float | None = None, zones=
 
 def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, height=0.3, outlet=0.1, ppc=4,
           shift=0.0, edge_cell=None, edge_zone=0.04, comm=MPI.COMM_WORLD, strips=True,
-          law="max", volumetric="nodal", stress="cell"):  # fmt: skip
+          law="max", volumetric="nodal", stress="cell", quadrature="particle"):  # fmt: skip
     """The silo on a mesh of ``h`` [m]: solver, sinks and the outlet's gate, before settling.
 
     The walls, the bottom plates and the gate are rigid walls as geometry
@@ -89,8 +89,9 @@ def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, he
         radius: non-local radius r [m]; 0 for the local (viscoplastic) model.
         weight: the averaging weight.
         law: the non-local law, :data:`dolfin_mpm.averaging.LAWS` (its default ``m``).
-        volumetric, stress: the solver's options against volumetric locking and for the stress
-            a particle carries (:class:`dolfin_mpm.explicit.options.Options`). The nodal
+        volumetric, stress, quadrature: the solver's options against volumetric locking, for
+            the stress a particle carries and for how a cell's force is integrated
+            (:class:`dolfin_mpm.explicit.options.Options`). The nodal
             volumetric rate suits these squares of two triangles, not crossed squares
             (``docs/numerics.md``).
         wall_friction: wall and bottom friction angle [degrees], in [0, 90).
@@ -168,7 +169,7 @@ def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, he
     averaging = dm.NonlocalAverage(radius, weight, law=law)  # checks r >= 0; r = 0 is the local model
     solver = dm.Solver(
         grid, P, sand, bcs=[*walls, gate], gravity=(0.0, -G), sinks=[sink], averaging=averaging,
-        volumetric=volumetric, stress=stress,
+        volumetric=volumetric, stress=stress, quadrature=quadrature,
     )  # fmt: skip
     return solver, gate
 
@@ -234,12 +235,13 @@ class Monitor:
 
 def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, height=0.3, outlet=0.1,
         ppc=4, shift=0.0, edge_cell=None, t_end=0.25, t_settle=0.02, output=None, interval=0.005,
-        progress=True, comm=MPI.COMM_WORLD, law="max", volumetric="nodal", stress="cell"):  # fmt: skip
+        progress=True, comm=MPI.COMM_WORLD, law="max", volumetric="nodal", stress="cell",
+        quadrature="particle"):  # fmt: skip
     """Settle the fill, open the outlet at t = 0 and discharge until ``t_end`` [s].
 
     Args:
         h, radius, weight, wall_friction, width, height, outlet, ppc, shift, edge_cell, comm, law,
-            volumetric, stress: as for :func:`build`.
+            volumetric, stress, quadrature: as for :func:`build`.
         t_end: end of the discharge [s].
         t_settle: length of the damped settling phase before the opening [s].
         output: folder for the XDMF series (particles and grid), or ``None``.
@@ -259,7 +261,7 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, heig
         raise ValueError(f"t_settle must be >= 0 s, got {t_settle!r}")
     solver, gate = build(
         h, radius, weight, wall_friction, width, height, outlet, ppc, shift, edge_cell, comm=comm, law=law,
-        volumetric=volumetric, stress=stress,
+        volumetric=volumetric, stress=stress, quadrature=quadrature,
     )  # fmt: skip
     m0 = solver.total_mass()
     t0 = time.perf_counter()
@@ -296,6 +298,7 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, heig
         "law": law,
         "volumetric": volumetric,
         "stress": stress,
+        "quadrature": quadrature,
         "wall_friction": wall_friction,
         "shift": shift,
         "edge_cell": edge_cell,
@@ -464,14 +467,16 @@ ARRAYS = (
 
 def run_key(
     h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, shift=0.0, edge_cell=None, law="max",
-    volumetric="nodal", stress="cell",
+    volumetric="nodal", stress="cell", quadrature="particle",
 ) -> str:  # fmt: skip
     """Name of a stored run: the study parameters; every other setting is :func:`run`'s default."""
     shifted = f"_shift{shift:g}" if shift else ""
     edges = f"_edges{1e3 * edge_cell:g}mm" if edge_cell else ""
     rule = f"_{law}" if law != "max" and radius > 0 else ""
-    numerics = (f"_{volumetric}-volumetric" if volumetric != "nodal" else "") + (
-        f"_{stress}-stress" if stress != "cell" else ""
+    numerics = (
+        (f"_{volumetric}-volumetric" if volumetric != "nodal" else "")
+        + (f"_{stress}-stress" if stress != "cell" else "")
+        + (f"_{quadrature}-quadrature" if quadrature != "particle" else "")
     )
     rest = f"{shifted}{edges}{rule}{numerics}"
     return f"h{1e3 * h:g}mm_r{1e3 * radius:g}mm_{weight}_wall{wall_friction:g}{rest}"
@@ -945,6 +950,9 @@ def main():
     )
     parser.add_argument("--volumetric", default="nodal", choices=["cell", "nodal"], help="volumetric rate")
     parser.add_argument("--stress", default="cell", choices=["cell", "particle"], help="stress carried")
+    parser.add_argument(
+        "--quadrature", default="particle", choices=["particle", "cell"], help="how R integrates a cell"
+    )
     parser.add_argument("--output", type=Path, default=Path("results/silo"))
     parser.add_argument("--report", type=Path, help="write the Markdown report of the stored studies here")
     args = parser.parse_args()
@@ -959,6 +967,7 @@ def main():
                 law=args.law,
                 volumetric=args.volumetric,
                 stress=args.stress,
+                quadrature=args.quadrature,
             )
         ]
     elif args.study is None:

@@ -33,7 +33,7 @@ from dolfin_mpm.core.grid import Grid
 from dolfin_mpm.core.particles import Sink
 from dolfin_mpm.core.seeding import geostatic_stress, reference_points, seed
 from dolfin_mpm.core.walls import RigidWall
-from dolfin_mpm.explicit.options import INTEGERS, SCHEMES, STRESS, VOLUMETRIC, Options
+from dolfin_mpm.explicit.options import INTEGERS, QUADRATURE, SCHEMES, STRESS, VOLUMETRIC, Options
 from dolfin_mpm.explicit.solver import Solver
 from dolfin_mpm.materials import DruckerPragerViscoplastic, LinearElastic
 from dolfin_mpm.parallel import partition
@@ -72,6 +72,7 @@ _SOLVER = {
     "scheme": ("string", Options.scheme, SCHEMES),
     "volumetric": ("string", Options.volumetric, VOLUMETRIC),
     "stress": ("string", Options.stress, STRESS),
+    "quadrature": ("string", Options.quadrature, QUADRATURE),
     **{
         name: ("integer" if name in INTEGERS else "number", p.default, p.range)
         for name, p in parameters(Options).items()

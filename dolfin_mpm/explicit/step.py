@@ -34,6 +34,7 @@ from dolfin_mpm.core.cell_stress import cell_mean_stress
 from dolfin_mpm.core.grid import Grid
 from dolfin_mpm.core.locate import Basis, basis_at, locate
 from dolfin_mpm.core.particles import Particles
+from dolfin_mpm.core.quadrature import cell_weights
 from dolfin_mpm.core.transfer import (
     gradient,
     grid_to_particles,
@@ -123,13 +124,17 @@ class Nodal:
 
 
 # -- stages ----------------------------------------------------------------------------------------
-def p2g(model: Model, P: Particles, basis: Basis, time: float = 0.0) -> Nodal:
+def p2g(
+    model: Model, P: Particles, basis: Basis, time: float = 0.0, weights: np.ndarray | None = None
+) -> Nodal:
     """Lumped mass, momentum, ``F = m g``, ``R`` and the walls' contacts at the nodes, over ranks.
 
-    Moving walls are where they are at ``time`` [s].
+    Moving walls are where they are at ``time`` [s]; ``weights``: factors of the volumes in
+    ``R`` (:mod:`dolfin_mpm.core.quadrature`), ``None``: 1.
     """
     grid = model.grid
-    m, momentum, f_int = particles_to_grid(basis, P.mass, P.v, P.sigma, P.volume)
+    volume = P.volume if weights is None else P.volume * weights
+    m, momentum, f_int = particles_to_grid(basis, P.mass, P.v, P.sigma, volume)
     m = grid.assemble(grid.mass, m)
     momentum = grid.assemble(grid.momentum, momentum)
     grid.f_ext.x.array[:] = (m[:, None] * model.gravity).ravel()  # from the assembled mass
@@ -338,7 +343,10 @@ def advance(model: Model, state: State, timer: Timer) -> None:
     if options.stress == "cell":  # apart points stay stress free, out of the means
         P.sigma = cell_mean_stress(P.sigma, P.volume, cells, P.material, grid.num_cells, constitutive.apart)
         timer.lap("cell_stress")
-    nodal = p2g(model, P, basis, state.time)
+    weights = None
+    if options.quadrature == "cell":
+        weights = cell_weights(grid, basis, cells, P.volume)
+    nodal = p2g(model, P, basis, state.time, weights)
     timer.lap("p2g")
     if average is not None:
         average.update(P.x[:, : grid.gdim], P.volume, P.id)
@@ -409,7 +417,8 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         timer.lap("stress")
         if average is None:
             break
-        R = grid.assemble(grid.f_int, internal_force(basis, sigma, volume)).ravel()[:owned].copy()
+        weighted = volume if weights is None else volume * weights
+        R = grid.assemble(grid.f_int, internal_force(basis, sigma, weighted)).ravel()[:owned].copy()
         timer.lap("internal_force")
         sums = [(R - R_in) @ (R - R_in), R @ R]
         if overstress:
