@@ -117,11 +117,13 @@ def test_halo_is_kept_while_particles_move_less_than_half_the_skin():
     assert average.rebuilds == average.halo_builds  # the pair list with the halo, not in between
 
 
-def silo_run(comm, steps=200, strips=True, law="max"):
+def silo_run(comm, steps=200, strips=True, law="max", quadrature="particle"):
     """Global measures of a short, coarse non-local silo discharge on ``comm``."""
     silo = load("demo_silo")
     weight = "cubic" if law == "max" else "wendland"
-    solver, gate = silo.build(h=0.025, radius=0.025, weight=weight, comm=comm, strips=strips, law=law)
+    solver, gate = silo.build(
+        h=0.025, radius=0.025, weight=weight, comm=comm, strips=strips, law=law, quadrature=quadrature
+    )
     solver.bcs = [bc for bc in solver.bcs if bc is not gate]  # open at once: particles cross ranks
     for _ in range(steps):
         solver.step()
@@ -137,14 +139,23 @@ def silo_run(comm, steps=200, strips=True, law="max"):
 
 
 @functools.cache
-def serial_silo_run(law="max"):
-    return silo_run(MPI.COMM_SELF, law=law)
+def serial_silo_run(law="max", quadrature="particle"):
+    return silo_run(MPI.COMM_SELF, law=law, quadrature=quadrature)
 
 
-@pytest.mark.parametrize("strips, law", [(True, "max"), (False, "max"), (False, "paper")])
-def test_silo_on_all_ranks_equals_the_serial_run(strips, law):
+@pytest.mark.parametrize(
+    "strips, law, quadrature",
+    [
+        (True, "max", "particle"),
+        (False, "max", "particle"),
+        (False, "paper", "particle"),
+        (False, "max", "cell"),
+    ],
+)
+def test_silo_on_all_ranks_equals_the_serial_run(strips, law, quadrature):
     """Strips of equal fill; DOLFINx's partition, across which the particles fall."""
-    parallel, serial = silo_run(comm, strips=strips, law=law), serial_silo_run(law)
+    parallel = silo_run(comm, strips=strips, law=law, quadrature=quadrature)
+    serial = serial_silo_run(law, quadrature)
     assert parallel["discharged"] > 0.0
     if strips and comm.size == 2:  # cut at the axis of a symmetric flow: (almost) no crossing
         assert parallel["migrated"] < 0.01 * parallel["particles"]
