@@ -441,6 +441,8 @@ def test_fuzz_the_cli_exits_0_1_or_2_without_traceback_hang_or_stray_files(tmp_p
             code = main(["run", str(BAR), *sets, *steps, "--output", str(folder), "--force", "--quiet"])
             out, err = capsys.readouterr()
             assert code in (0, 1, 2) and "Traceback" not in out + err, (overrides, code, err)
+            if code == 1:  # the simulation went bad: named by step, particle and field
+                assert err.startswith("error: step ") and "particle" in err, (overrides, err)
             outcomes["ran" if code == 0 else "failed"] += 1
         except _Hang:
             pytest.fail(f"{overrides}: no answer within 20 s")
