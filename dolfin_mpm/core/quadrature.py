@@ -42,8 +42,8 @@ def cell_weights(grid: Grid, basis: Basis, cells: np.ndarray, volume: np.ndarray
     # int N_i over the cells that hold points: a wall's or a free surface's far side is no void
     owned = np.flatnonzero(total[: grid.num_owned_cells] > 0.0)
     d = grid.tdim + 1
-    patch = np.zeros(grid.num_nodes)
-    np.add.at(patch, grid.cell_dofs[owned].ravel(), np.repeat(grid.cell_volume[owned] / d, d))
+    share = np.repeat(grid.cell_volume[owned] / d, d)
+    patch = np.bincount(grid.cell_dofs[owned].ravel(), share, minlength=grid.num_nodes)
     patch = grid.assemble(grid.scratch, patch).copy()
     sums = grid.assemble(grid.scratch, scatter(basis, volume))
     phi = np.divide(sums, patch, out=np.zeros_like(patch), where=patch > 0.0)
