@@ -7,9 +7,9 @@
 Exit status: 0 done, 1 the run failed (simulation or output), 2 bad input, 128 + signal
 number when stopped by SIGINT or SIGTERM (after writing a checkpoint). Under ``mpirun``
 every rank runs the same command; rank 0 prints. The launcher sets its own status: MPICH's
-``mpiexec`` passes the ranks' on (130, 143); Open MPI's ``mpirun`` sends SIGTERM to the ranks
-for Ctrl-C as well, and exits with 1 (:mod:`dolfin_mpm.parallel.launcher`). Ranks die with
-their launcher.
+``mpiexec`` exits with the ranks' 130 or 143; Open MPI's ``mpirun`` sends SIGTERM to the ranks
+for Ctrl-C as well, kills them 1 s later, and exits with 1 (:mod:`dolfin_mpm.parallel.launcher`).
+Ranks die with their launcher.
 """
 
 import argparse

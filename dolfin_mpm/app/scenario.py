@@ -868,6 +868,10 @@ def build(cfg: dict, comm=MPI.COMM_WORLD) -> Simulation:
             P = None
         if comm.allreduce(0 if P is None else len(P), MPI.SUM) == 0 and P is not None:
             errors.append(f"bodies.{name}.region: holds no particles on this mesh")
+        if b["stress"] is not None:  # collective: on every rank, with particles or not
+            top = comm.allreduce(
+                -INF if P is None else float(np.max(P.x[:, grid.gdim - 1], initial=-INF)), MPI.MAX
+            )
         if P is None:
             continue
         for i, v in enumerate(b["velocity"] or []):
@@ -880,7 +884,6 @@ def build(cfg: dict, comm=MPI.COMM_WORLD) -> Simulation:
             K0 = b["stress"]["K0"] if b["stress"]["K0"] is not None else mat.nu / (1.0 - mat.nu)
             g = math.hypot(*gravity)
             surface = b["stress"]["surface"]
-            top = comm.allreduce(float(np.max(P.x[:, grid.gdim - 1], initial=-INF)), MPI.MAX)
             if surface < top:
                 errors.append(
                     f"bodies.{name}.stress.surface: {_show(surface)} m lies below the body's top particle "
@@ -934,15 +937,16 @@ def build(cfg: dict, comm=MPI.COMM_WORLD) -> Simulation:
         elif w["type"] == "frictional":
             mu = math.tan(math.radians(w["friction_angle"]))
             walls[name] = [FrictionalWall(nodes, normal=tuple(w["normal"]), mu=mu)]
-            if particles is not None:  # unilateral: a normal into the material lets it through
-                reach = comm.allreduce(float(np.max(grid.cell_height, initial=0.0)), MPI.MAX)
-                into, out = comm.allreduce(np.array(walls[name][0].sides(grid.node_x, particles.x, reach)))
-                if into > out:
-                    errors.append(
-                        f"walls.{name}.normal: {_show(w['normal'])} points into the material ({into} of "
-                        f"the {into + out} particles within a cell of its nodes lie on the side it points "
-                        "to): a frictional wall's normal points out of the material, into the wall"
-                    )
+            # unilateral: a normal into the material lets it through (collective on every rank)
+            reach = comm.allreduce(float(np.max(grid.cell_height, initial=0.0)), MPI.MAX)
+            x = particles.x if particles is not None else np.zeros((0, 3))
+            into, out = comm.allreduce(np.array(walls[name][0].sides(grid.node_x, x, reach)))
+            if into > out:
+                errors.append(
+                    f"walls.{name}.normal: {_show(w['normal'])} points into the material ({into} of "
+                    f"the {into + out} particles within a cell of its nodes lie on the side it points "
+                    "to): a frictional wall's normal points out of the material, into the wall"
+                )
         else:
             walls[name] = [VelocityBC(nodes, velocity=np.array(w["velocity"]))]
     errors = _agree(comm, errors)

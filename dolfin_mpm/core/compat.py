@@ -167,25 +167,26 @@ def read_mesh(comm, path, gdim: int):
             return f.read_mesh(name=name)
     meshio_name = _MESHIO_CELLS[gdim][0]
     cells, x = np.zeros((0, gdim + 1), np.int64), np.zeros((0, gdim))
-    m, error = None, None
+    error = None
     if comm.rank == 0:
         import meshio
 
         try:
             m = meshio.read(path)
+            blocks = [b.data for b in m.cells if b.type == meshio_name]
+            if blocks:
+                cells = np.concatenate(blocks).astype(np.int64)
+                if cells.min() < 0 or cells.max() >= len(m.points):
+                    raise ValueError(f"cells name points 0 to {cells.max()}, the file has {len(m.points)}")
+                used = np.unique(cells)  # drop points only lower-dimensional cells use
+                renumber = np.full(len(m.points), -1, dtype=np.int64)
+                renumber[used] = np.arange(len(used))
+                cells, x = renumber[cells], np.ascontiguousarray(m.points[used, :gdim], dtype=np.float64)
         except Exception as e:  # meshio's readers fail in many ways on a file that is not a mesh
             error = f"{path} is not a mesh file meshio reads ({type(e).__name__}: {e})"
-    error = comm.bcast(error, root=0)
+    error = comm.bcast(error, root=0)  # every rank raises, or none
     if error:
         raise ValueError(error)
-    if m is not None:
-        blocks = [b.data for b in m.cells if b.type == meshio_name]
-        if blocks:
-            cells = np.concatenate(blocks).astype(np.int64)
-            used = np.unique(cells)  # drop points only lower-dimensional cells use
-            renumber = np.full(len(m.points), -1, dtype=np.int64)
-            renumber[used] = np.arange(len(used))
-            cells, x = renumber[cells], np.ascontiguousarray(m.points[used, :gdim], dtype=np.float64)
     if comm.bcast(len(cells) == 0, root=0):
         raise ValueError(f"{path}: no {meshio_name} cells for a mesh of dimension {gdim}")
     return create_mesh(comm, cells, x)

@@ -98,12 +98,6 @@ class Grid:
         edges = X[:, :, None, :] - X[:, None, :, :]  # (num_cells, d+1, d+1, gdim), d+1 small
         self.diameter = float(np.sqrt((edges**2).sum(axis=-1)).max()) if self.num_cells else 0.0
         self.tree = compat.bounding_box_tree(msh)
-        # int N_i over the mesh [m^3]: each owned cell gives each of its nodes 1/(d+1) of it.
-        owned = slice(self.num_owned_cells)
-        lumped = np.zeros(self.num_nodes)
-        share = np.repeat(self.cell_volume[owned] / (self.tdim + 1), self.tdim + 1)
-        np.add.at(lumped, self.cell_dofs[owned].ravel(), share)
-        self.node_volume = self.assemble(self.scratch, lumped).copy()
 
     def assemble(self, u: fem.Function, values: np.ndarray) -> np.ndarray:
         """Set ``u`` from per-node local sums, add ghost sums into owners, refresh ghosts.

@@ -23,8 +23,8 @@ from dolfin_mpm.core.transfer import scatter
 __all__ = ["FULL", "cell_weights"]
 
 #: Nodal volume fraction from which a node's patch counts as full: in a filled region the
-#: points' 0.5 to 1.5 per triangle average to 0.8-1.2 over a patch; at a free surface on a mesh
-#: line it is 0.5.
+#: points' 0.5 to 1.5 of a triangle's area average to about 0.8-1.2 over a patch; a node whose
+#: patch a surface cuts sees the part filled.
 FULL = 0.75
 
 

@@ -8,8 +8,14 @@ holds is what a resume continues from.
 
 Signals reach the ranks as the launcher forwards them. MPICH's ``mpiexec`` forwards ``SIGINT``
 and ``SIGTERM`` as they are, and exits with the ranks' status (130, 143). Open MPI's ``mpirun``
-turns both into ``SIGTERM`` for every rank and exits with 1 itself; the ranks still write their
-checkpoint first.
+turns both into ``SIGTERM`` for every rank, kills the ranks 1 s later (its
+``odls_base_sigkill_timeout``; give ``--mca odls_base_sigkill_timeout 60`` for runs whose
+checkpoint takes longer), and exits with 1 itself. A checkpoint cut by that kill leaves the
+previous one, as any kill does (it is written under a temporary name and renamed).
+
+Not covered: ``mpirun -n 1`` (one rank looks like a serial run; setting the request there would
+also kill a ``nohup`` run with its shell), and launchers that start ranks from a thread that
+ends before them (the kernel sends the signal when the forking thread exits).
 """
 
 import ctypes
@@ -29,12 +35,12 @@ def die_with_launcher(comm) -> bool:
     """On Linux under a launcher (``comm.size > 1``), let the kernel kill this rank with its parent.
 
     Returns:
-        Whether the request was made. A rank whose parent is already gone stops at once.
+        Whether the request was made. A rank whose parent died while it was made stops at once.
 
     """
     if comm.size == 1 or not sys.platform.startswith("linux"):
         return False
-    libc = ctypes.CDLL(ctypes.util.find_library("c"), use_errno=True)
+    libc = ctypes.CDLL(ctypes.util.find_library("c"))
     parent = os.getppid()
     if libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0) != 0:
         return False
