@@ -974,6 +974,12 @@ def build(cfg: dict, comm=MPI.COMM_WORLD) -> Simulation:
         raise ScenarioError([f"solver: {e}"]) from None
     errors = _step_errors(cfg, solver.dt)
     if errors:
+        if solver.start_speed > max(m.p_wave_speed() for m in materials):  # the bodies set the step
+            speed = f"{solver.start_speed:.3g} m/s"
+            errors = [
+                f"{e} (the particles' speed at the start, {speed}, sets it: bodies.*.velocity)"
+                for e in errors
+            ]
         raise ScenarioError(errors)
     start = cfg["time"]["start"]
     # A negative start is whole steps before t = 0, so that t = 0 (an opening, say) is a step.

@@ -97,10 +97,13 @@ class Solver:
         # carry neither a wave nor a particle across more than ``courant`` of a cell.
         top = float(np.max(np.abs(particles.v), initial=0.0))  # scaled: 1e308 m/s does not overflow
         speed = top * float(np.sqrt(np.max(np.sum((particles.v / top) ** 2, axis=1)))) if top > 0 else 0.0
-        speed = grid.comm.allreduce(speed, MPI.MAX)
+        #: The particles' largest speed at the start [m/s], over the ranks.
+        self.start_speed = grid.comm.allreduce(speed, MPI.MAX)
         h_min = grid.comm.allreduce(grid.h_min, MPI.MIN)
-        #: The largest stable time step [s]: ``courant * h_min / (max p-wave speed + max particle speed)``.
-        self.critical_dt = opts.courant * h_min / (max(m.p_wave_speed() for m in materials) + speed)
+        #: The largest stable time step [s]: ``courant * h_min / (max p-wave speed + start_speed)``.
+        self.critical_dt = (
+            opts.courant * h_min / (max(m.p_wave_speed() for m in materials) + self.start_speed)
+        )
         _check_walls(grid, particles, bcs)
         self.model = Model(grid, materials, list(bcs), g, opts)
         average = None if averaging is None else over_ranks(averaging, grid.comm)
