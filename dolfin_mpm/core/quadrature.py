@@ -14,13 +14,27 @@ on a mesh line is not counted as void). Cells that the material fills only in pa
 points' quadrature, which follows the material there.
 """
 
+import ctypes
+from pathlib import Path
+
 import numpy as np
 
+from dolfin_mpm import native
 from dolfin_mpm.core.grid import Grid
 from dolfin_mpm.core.locate import Basis
-from dolfin_mpm.core.transfer import scatter
 
 __all__ = ["FULL", "cell_weights"]
+
+_INT, _REAL, _I64 = native.array(np.int32), native.array(np.float64), native.array(np.int64)
+_kernels = native.kernels(
+    Path(__file__).with_suffix(".c"),
+    {
+        "quadrature_sums": (ctypes.c_int64, ctypes.c_int32, _INT, _REAL, _I64, _REAL, ctypes.c_int64,
+                            ctypes.c_int64, _INT, _REAL, _REAL, _REAL, _REAL),
+        "quadrature_weights": (ctypes.c_int64, ctypes.c_int32, _INT, _I64, _REAL, _REAL, _REAL, _REAL,
+                               ctypes.c_double, _REAL),
+    },
+)  # fmt: skip
 
 #: Nodal volume fraction from which a node's patch counts as full: in a filled region the
 #: points' 0.5 to 1.5 of a triangle's area average to about 0.8-1.2 over a patch; a node whose
@@ -31,21 +45,23 @@ FULL = 0.75
 def cell_weights(grid: Grid, basis: Basis, cells: np.ndarray, volume: np.ndarray) -> np.ndarray:
     """Factor of each particle's volume in ``R``, ``shape=(n,)``.
 
-    ``A_e / sum_(p in e) V_p`` in the cells whose nodes are all full, 1 elsewhere.
+    ``A_e / sum_(p in e) V_p`` in the cells whose nodes are all full, 1 elsewhere. Collective.
 
     Args:
         cells: each particle's local cell, ``shape=(n,)``.
         volume: particle volumes [m^3], ``shape=(n,)``.
 
     """
-    total = np.bincount(cells, volume, minlength=grid.num_cells)
+    n, nn = len(volume), basis.dofs.shape[0]
+    cells = np.ascontiguousarray(cells, dtype=np.int64)
+    volume = np.ascontiguousarray(volume, dtype=np.float64)
+    total, sums, patch = np.zeros(grid.num_cells), np.zeros(basis.num_nodes), np.zeros(basis.num_nodes)
+    k = _kernels()
+    k.quadrature_sums(n, nn, basis.dofs, basis.N, cells, volume, grid.num_cells, grid.num_owned_cells,
+                      grid.cell_dofs_T, grid.cell_volume, total, sums, patch)  # fmt: skip
     # int N_i over the cells that hold points: a wall's or a free surface's far side is no void
-    owned = np.flatnonzero(total[: grid.num_owned_cells] > 0.0)
-    d = grid.tdim + 1
-    share = np.repeat(grid.cell_volume[owned] / d, d)
-    patch = np.bincount(grid.cell_dofs[owned].ravel(), share, minlength=grid.num_nodes)
     patch = grid.assemble(grid.scratch, patch).copy()
-    sums = grid.assemble(grid.scratch, scatter(basis, volume))
-    phi = np.divide(sums, patch, out=np.zeros_like(patch), where=patch > 0.0)
-    inside = phi[basis.dofs].min(axis=0) >= FULL
-    return np.where(inside, grid.cell_volume[cells] / total[cells], 1.0)
+    sums = grid.assemble(grid.scratch, sums)
+    w = np.empty(n)
+    k.quadrature_weights(n, nn, basis.dofs, cells, sums, patch, total, grid.cell_volume, FULL, w)
+    return w
