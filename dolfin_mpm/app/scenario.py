@@ -890,11 +890,11 @@ def build(cfg: dict, comm=MPI.COMM_WORLD) -> Simulation:
                     f"at {top:.6g} m: the geostatic stress would be tension above it"
                 )
             with np.errstate(all="ignore"):
-                P.sigma = geostatic_stress(P.x, mat.rho, g, b["stress"]["surface"], K0, grid.gdim)
+                P.sigma = geostatic_stress(P.x, mat.rho, g, surface, K0, grid.gdim)
             if not np.all(np.isfinite(P.sigma)):
                 errors.append(
                     f"bodies.{name}.stress: the geostatic stress overflows (rho = {mat.rho:g} kg/m^3, "
-                    f"g = {g:g} m/s^2, surface = {b['stress']['surface']:g} m)"
+                    f"g = {g:g} m/s^2, surface = {surface:g} m)"
                 )
         if not (np.all(np.isfinite(P.mass)) and np.all(P.mass > 0.0) and np.all(P.volume > 0.0)):
             errors.append(

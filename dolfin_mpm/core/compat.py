@@ -177,7 +177,9 @@ def read_mesh(comm, path, gdim: int):
             if blocks:
                 cells = np.concatenate(blocks).astype(np.int64)
                 if cells.min() < 0 or cells.max() >= len(m.points):
-                    raise ValueError(f"cells name points 0 to {cells.max()}, the file has {len(m.points)}")
+                    raise ValueError(
+                        f"cells name points {cells.min()} to {cells.max()}, the file has {len(m.points)}"
+                    )
                 used = np.unique(cells)  # drop points only lower-dimensional cells use
                 renumber = np.full(len(m.points), -1, dtype=np.int64)
                 renumber[used] = np.arange(len(used))

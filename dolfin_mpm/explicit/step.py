@@ -1,6 +1,6 @@
 """One explicit MPM step, the paper's §3, as a fixed sequence of stages.
 
-    sinks -> locate [-> migrate] -> basis [-> cell stress] -> P2G [-> neighbours]
+    sinks -> locate [-> migrate] -> basis [-> cell stress] [-> quadrature] -> P2G [-> neighbours]
       -> loop { nodal solve -> G2P -> return mapping [-> averaging] -> stress [-> R, test] }
       -> move
 
@@ -56,8 +56,8 @@ __all__ = ["CORRECTION", "STAGES", "Model", "Nodal", "SimulationError", "advance
 
 #: The stages of :func:`advance` in their order; each step's times add up to the step.
 STAGES = (
-    "sinks", "locate", "migrate", "basis", "cell_stress", "p2g", "neighbours", "nodal_solve", "g2p",
-    "return_mapping", "averaging", "stress", "internal_force", "convergence", "move",
+    "sinks", "locate", "migrate", "basis", "cell_stress", "quadrature", "p2g", "neighbours", "nodal_solve",
+    "g2p", "return_mapping", "averaging", "stress", "internal_force", "convergence", "move",
 )  # fmt: skip
 
 #: The particle state field an iterative non-local law starts each step from, the last step's
@@ -346,6 +346,7 @@ def advance(model: Model, state: State, timer: Timer) -> None:
     weights = None
     if options.quadrature == "cell":
         weights = cell_weights(grid, basis, cells, P.volume)
+        timer.lap("quadrature")
     nodal = p2g(model, P, basis, state.time, weights)
     timer.lap("p2g")
     if average is not None:
