@@ -117,13 +117,41 @@ def reference(scenario_file):
     return s
 
 
+def series(folder: Path, name: str = "particles") -> list[tuple[float, dict]]:
+    """The times of ``folder/<name>.xdmf`` with the data each refers to, by attribute name."""
+    root = ET.parse(folder / f"{name}.xdmf").getroot()
+    out = []
+    with h5py.File(folder / f"{name}.h5", "r") as f:
+        for grid in root.find("Domain/Grid"):
+            items = {a.get("Name"): a.find("DataItem").text for a in grid.iter("Attribute")}
+            items["x"] = grid.find("Geometry/DataItem").text
+            data = {k: f[text.split(":/")[1]][()] for k, text in items.items()}
+            out.append((float(grid.find("Time").get("Value")), data))
+    return out
+
+
+def assert_same_series(folder: Path, reference: Path, extra: tuple = ()) -> None:
+    """One series in ``folder`` with the times and the data of the series in ``reference``,
+    and the ``extra`` times (a finished run's last state) besides."""
+    assert not list(folder.glob("resume-*"))
+    for name in ("particles", "grid"):
+        ours = [(t, d) for t, d in series(folder, name) if t not in extra]
+        theirs = series(reference, name)
+        assert [t for t, _ in ours] == [t for t, _ in theirs], name
+        for (_, a), (_, b) in zip(ours, theirs):
+            assert_same(a, b)
+        assert len(ours) + len(extra) == len(series(folder, name))
+
+
 def test_resume_after_a_finished_shorter_run_is_bit_identical(scenario_file, reference, tmp_path):
     folder = tmp_path / "run"
     assert (
         main(["run", str(scenario_file), "--output", str(folder), "--quiet", "--set", "time.end=0.023"]) == 0
     )
+    end = float(np.loadtxt(folder / "history.csv", delimiter=",", skiprows=1)[-1, 0])
     assert main(["resume", str(folder), "--quiet", "--set", "time.end=0.04"]) == 0
     assert_same(state(folder), reference)
+    assert_same_series(folder, scenario_file.parent / "reference", extra=(end,))  # and the first end
 
 
 def test_a_checkpoint_of_other_nodes_is_refused(scenario_file, reference):
@@ -189,6 +217,8 @@ def test_sigint_sigterm_sigkill_and_resume_end_where_the_uninterrupted_run_ends(
     assert not (folder / "checkpoint.h5.tmp").exists() or _step_of(folder / "checkpoint.h5") > 0
     assert main(["resume", str(folder), "--quiet"]) == 0
     assert_same(state(folder), reference)
+    # The outputs the killed run wrote after its last checkpoint were dropped and written again.
+    assert_same_series(folder, scenario_file.parent / "reference")
 
 
 def _launcher() -> list[str] | None:

@@ -84,8 +84,6 @@ class Runner:
         self.progress = Progress(
             cfg["time"]["start"], cfg["time"]["end"], s.dt, stream, progress and self.root, self.mass_unit
         )
-        xdmf = "." if self.fresh else f"resume-{s.step_count}"
-        self.xdmf_folder = self.folder / xdmf
         self.figures = self.folder / "figures"
         g = s.grid.node_x
         lo, hi = np.empty(3), np.empty(3)
@@ -179,9 +177,10 @@ class Runner:
         output = None
         if cfg["output"]["xdmf"]:
             try:
-                output = Output(self.xdmf_folder, self.comm)  # rank 0 opens the files
+                # rank 0 opens the files; a resumed run extends them from its checkpoint's time
+                output = Output(self.folder, self.comm, None if self.fresh else s.time)
             except OSError as e:
-                raise RunError(f"cannot write the XDMF series in {self.xdmf_folder} ({e})") from None
+                raise RunError(f"cannot write the XDMF series in {self.folder} ({e})") from None
         flag = {"signum": 0}
         try:
             with _catch_signals(flag):
@@ -213,9 +212,7 @@ class Runner:
             try:
                 output.write(self.sim.solver)  # collective; only rank 0 writes
             except OSError as e:
-                message = (
-                    f"writing the XDMF series in {self.xdmf_folder} failed ({e}); {self._last_checkpoint()}"
-                )
+                message = f"writing the XDMF series in {self.folder} failed ({e}); {self._last_checkpoint()}"
                 if self.comm.size > 1:  # the other ranks are past the write: stop them all
                     print(f"error: {message}", file=sys.stderr, flush=True)
                     self.comm.Abort(1)

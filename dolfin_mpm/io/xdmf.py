@@ -26,21 +26,46 @@ class XDMFSeries:
 
     Args:
         path: the ``.xdmf`` file; the data goes to the same name with ``.h5``.
+        after: extend the series already there, keeping its times up to ``after`` [s] and
+            dropping the later ones (a run resumed from a checkpoint at ``after`` writes them
+            again); ``None``, or no series there: a new series.
 
     """
 
-    def __init__(self, path):
+    def __init__(self, path, after: float | None = None):
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.h5_path = self.path.with_suffix(".h5")
+        self.count = 0
+        if after is not None and self.path.exists() and self.h5_path.exists():
+            self._extend(after)
+            return
         self.h5 = h5py.File(self.h5_path, "w")
         self.root = ET.Element("Xdmf", Version="3.0")
         domain = ET.SubElement(self.root, "Domain")
         self.series = ET.SubElement(
             domain, "Grid", Name="series", GridType="Collection", CollectionType="Temporal"
         )
-        self.count = 0
-        self.static: dict[str, str] = {}
+
+    def _extend(self, after: float) -> None:
+        self.root = ET.parse(self.path).getroot()
+        self.series = self.root.find("Domain/Grid")
+        grids = list(self.series)
+        keep = [g for g in grids if float(g.find("Time").get("Value")) <= after]
+        if keep != grids[: len(keep)]:
+            raise ValueError(f"{self.path}: its times are not in order")
+        for g in grids[len(keep) :]:
+            self.series.remove(g)
+        self.h5 = h5py.File(self.h5_path, "a")
+        for k in range(len(keep), len(grids)):
+            self.h5.pop(f"step{k}", None)
+        self.count = len(keep)
+
+    @property
+    def last_time(self) -> float | None:
+        """The series' last time [s], ``None`` while it is empty."""
+        grids = list(self.series)
+        return float(grids[-1].find("Time").get("Value")) if grids else None
 
     def _item(self, parent, name: str, data: np.ndarray) -> None:
         if name not in self.h5:
@@ -122,20 +147,26 @@ def _gather(comm, a: np.ndarray) -> np.ndarray | None:
 class Output:
     """Writes ``particles.xdmf`` and ``grid.xdmf`` in ``folder`` at each :meth:`write`.
 
+    ``after`` [s]: extend the series in ``folder``, from their times up to ``after`` on (see
+    :class:`XDMFSeries`): a run resumed from its checkpoint at ``after`` continues its files.
+
     Particle fields: velocity, stress (full 3x3), p, q, mass, volume, id, and every material
     state array. Grid fields: mass, momentum, velocity, internal, external and contact force.
     """
 
-    def __init__(self, folder, comm):
+    def __init__(self, folder, comm, after: float | None = None):
         self.folder = Path(folder)
         self.comm = comm
         self.particles = self.grid = None
-        self.last_time: float | None = None
+        last = None
         self._mesh = None
         if comm.rank == 0:
             self.folder.mkdir(parents=True, exist_ok=True)
-            self.particles = XDMFSeries(self.folder / "particles.xdmf")
-            self.grid = XDMFSeries(self.folder / "grid.xdmf")
+            self.particles = XDMFSeries(self.folder / "particles.xdmf", after)
+            self.grid = XDMFSeries(self.folder / "grid.xdmf", after)
+            last = self.particles.last_time
+        #: The time last written [s] (of the series extended, with ``after``).
+        self.last_time: float | None = comm.bcast(last, root=0)
 
     def write(self, solver) -> None:
         """Append the solver's current state (once per simulated time)."""
