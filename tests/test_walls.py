@@ -17,13 +17,42 @@ G = 9.81
     "segment, mu, match",
     [
         ([(0.0, 0.0), (0.0, 0.0)], 0.0, r"^floor: segment is degenerate"),
-        ([(0.0, 0.0), (np.nan, 1.0)], 0.0, r"^floor: segment must be two points of 2 finite"),
-        ([(0.0, 0.0, 0.0), (1.0, 0.0, 0.0)], 0.0, r"^floor: segment must be two points of 2"),
+        ([(0.0, 0.0), (np.nan, 1.0)], 0.0, r"^floor: points must be a segment .* of finite coordinates"),
+        (
+            [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0)],
+            0.0,
+            r"^floor: a wall in 2D is a segment of two points, got 3",
+        ),
+        ([(0.0, 0.0, 0.0), (1.0, 0.0, 0.0)], 0.0, r"^floor: a wall in 3D is a facet of three or more points"),
+        (
+            [(0, 0, 0), (1, 0, 0), (2, 0, 0)],
+            0.0,
+            r"^floor: facet is degenerate \(no area: its points on a line",
+        ),
+        (
+            [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0.01)],
+            0.0,
+            r"^floor: facet is not flat: point .* lies 0.0025 m off the plane",
+        ),
+        (
+            [(0, 0, 0), (1, 0, 0), (0, 1, 0), (1, 1, 0)],
+            0.0,
+            r"^floor: facet is degenerate .* not in order round",
+        ),
+        (
+            [(0, 0, 0), (2, 0, 0), (1, 0.5, 0), (1, 2, 0)],
+            0.0,
+            r"^floor: facet is not convex, or its points are not",
+        ),
+        ([(0, 0, 0), (1, 0, 0), (1, 1, 0)], 0.0, None),  # a triangle is a facet
         ([(0.0, 0.0), (1.0, 0.0)], -0.1, r"^floor: mu must be in \[0, inf\], got -0.1"),
         ([(0.0, 0.0), (1.0, 0.0)], np.nan, r"^floor: mu must be in \[0, inf\], got nan"),
     ],
 )
 def test_bad_wall_is_named(segment, mu, match):
+    if match is None:
+        assert np.allclose(dm.RigidWall(segment, mu, "floor").normal, [0.0, 0.0, -1.0])  # away from z > 0
+        return
     with pytest.raises(ValueError, match=match):
         dm.RigidWall(segment, mu, "floor")
 
@@ -167,7 +196,7 @@ SILO = Path(__file__).parents[1] / "demos" / "silo.toml"
         ("walls.bottom_left.segment=[[0.0, 0.0]]", r"walls.bottom_left.segment: must be two points"),
         (
             "walls.bottom_left.segment=[[0.0, 0.0], [0.05, nan]]",
-            r"walls.bottom_left.segment: segment must be",
+            r"walls.bottom_left.segment: points must be",
         ),
         (
             "walls.gate.type='velocity'",
@@ -214,7 +243,7 @@ def test_scenario_polygon_wall_is_a_chain_of_segments(tmp_path):
     sim = scenario.build(scenario.load(tmp_path / "s.toml"))
     left = sim.walls["left"]
     assert [w.name for w in left] == ["walls.left.polygon"] * 2
-    assert np.array_equal(left[1].segment, [[0.0, 0.0], [0.05, 0.0]]) and left[1].mu == pytest.approx(
+    assert np.array_equal(left[1].points, [[0.0, 0.0], [0.05, 0.0]]) and left[1].mu == pytest.approx(
         np.tan(np.radians(20))
     )
     assert sum(isinstance(bc, dm.RigidWall) for bc in sim.solver.bcs) == 5
@@ -271,3 +300,212 @@ def test_contact_applies_each_walls_share_of_the_coulomb_condition():
     forces = contact.forces(dt=0.5)
     for k, w in enumerate(walls):
         assert np.allclose(forces[w], contact.changes[k].sum(axis=0) / 0.5)
+
+
+def box(x0, x1, n):
+    from dolfinx import mesh
+    from mpi4py import MPI
+
+    return mesh.create_box(
+        MPI.COMM_WORLD, [np.array(x0, float), np.array(x1, float)], n, mesh.CellType.tetrahedron
+    )
+
+
+def test_block_sliding_down_an_inclined_facet_decelerates_at_g_sin_minus_mu_cos():
+    """3D: a facet at 17 degrees, rotated 30 degrees about the vertical, on a structured box mesh.
+
+    No mesh plane follows it; the block slides straight down the slope."""
+    theta, mu, turn = np.radians(17.0), 0.5, np.radians(30.0)
+    grid = dm.Grid(box((0, 0, 0), (0.6, 0.6, 0.45), (15, 15, 12)))
+    across = np.array([-np.sin(turn), np.cos(turn), 0.0])  # horizontal, along the slope's contour
+    down = np.array([np.cos(theta) * np.cos(turn), np.cos(theta) * np.sin(turn), -np.sin(theta)])
+    up = np.cross(down, across)  # the slope's normal, towards the material
+    assert up[2] > 0.0
+    a = np.array([0.3, 0.3, 0.3]) - 0.2 * down  # the slope's upper middle
+    corners = [
+        a - 0.15 * across,
+        a + 0.15 * across,
+        a + 0.4 * down + 0.15 * across,
+        a + 0.4 * down - 0.15 * across,
+    ]
+    corners = (
+        corners if np.cross(corners[1] - corners[0], corners[2] - corners[1]) @ up > 0 else corners[::-1]
+    )
+    slope = dm.RigidWall(corners, mu=mu, name="slope")
+    assert np.allclose(slope.normal, -up)
+    mat = dm.LinearElastic(E=1e6, nu=0.3, rho=1000.0)
+    thickness = 0.06
+
+    def local(x):  # along, across and above the slope, x.shape=(3, n)
+        d = x.T - a
+        return d @ down, d @ across, d @ up
+
+    def block(x):
+        s, c, t = local(x)
+        return (s > 0.05) & (s < 0.17) & (np.abs(c) < 0.06) & (t > 0) & (t < thickness)
+
+    P = dm.seed(grid, mat, ppc=4, where=block, velocity=tuple(down))  # 1 m/s down the slope
+    t = local(P.x.T)[2]
+    P.sigma[:] = (-mat.rho * G * np.cos(theta) * (thickness - t))[:, None, None] * np.outer(up, up)
+    solver = dm.Solver(grid, P, mat, bcs=[slope], gravity=(0, 0, -G), flip=0.0)
+    m = solver.total_mass()
+    times, speeds, side = [], [], []
+    while solver.time < 0.12:
+        solver.step()
+        times.append(solver.time)
+        p = solver.total_momentum() / m
+        speeds.append(p @ down)
+        side.append(p @ across)
+    times, speeds = np.array(times), np.array(speeds)
+    late = times > 0.02  # after the first contact waves
+    deceleration = np.polyfit(times[late], speeds[late], 1)[0]
+    assert deceleration == pytest.approx(G * (np.sin(theta) - mu * np.cos(theta)), rel=0.01)
+    assert np.max(np.abs(side)) < 1e-3 * speeds[0]  # straight down the slope
+    assert solver.comm.allreduce(solver.state.wall_stops) == 0  # the grid alone held the block
+
+
+def test_a_move_across_a_facet_stops_on_it_and_a_move_past_its_edge_does_not():
+    floor = dm.RigidWall([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)], name="floor")  # seen from above
+    x = np.array([[0.5, 0.5, 0.01], [1.2, 0.5, 0.01], [0.5, 0.5, 0.5]])
+    dx = np.array([[0.1, 0.0, -0.03], [0.0, 0.0, -0.03], [0.0, 0.0, -0.03]])
+    v = np.array([[1.0, 0.0, -3.0], [0.0, 0.0, -3.0], [0.0, 0.0, -3.0]])
+    assert stop_at_walls([floor], x, dx, v, time=0.0, dt=0.01) == 1
+    assert np.allclose(dx[0], [0.1, 0.0, -0.01]) and np.allclose(v[0], [1.0, 0.0, 0.0])  # on it, sliding
+    assert np.array_equal(dx[1:, 2], [-0.03, -0.03]) and np.array_equal(v[1:, 2], [-3.0, -3.0])
+
+
+def test_a_facet_of_another_dimension_or_outside_the_mesh_is_refused():
+    grid = dm.Grid(box((0, 0, 0), (1, 1, 1), (2, 2, 2)))
+    mat = dm.LinearElastic(E=1e4, nu=0.3, rho=1000.0)
+    P = dm.seed(grid, mat, ppc=1, where=lambda x: x[2] < 0.5)
+    with pytest.raises(ValueError, match=r"^floor: the wall is a segment in 2D, the grid is 3D"):
+        dm.Solver(grid, P, mat, bcs=[dm.RigidWall([(0, 0), (1, 0)], name="floor")])
+    with pytest.raises(
+        ValueError, match=r"^floor: facet point \[1.5, 0.0, 0.0\] lies outside the mesh \[0, 1\] x"
+    ):
+        dm.Solver(grid, P, mat, bcs=[dm.RigidWall([(0, 0, 0), (1.5, 0, 0), (0, 1, 0)], name="floor")])
+    with pytest.raises(
+        ValueError, match=r"^floor: \d+ particles start behind the wall .* go counter-clockwise"
+    ):
+        dm.Solver(
+            grid, P, mat, bcs=[dm.RigidWall([(0, 0, 0), (0, 1, 0), (1, 1, 0), (1, 0, 0)], name="floor")]
+        )
+
+
+BOX = """
+[mesh]
+shape = "box"
+lower = [0.0, 0.0, 0.0]
+upper = [0.2, 0.2, 0.2]
+cells = [4, 4, 4]
+
+[materials.sand]
+model = "elastic"
+E = 1e5
+nu = 0.3
+rho = 1000.0
+
+[bodies.block]
+material = "sand"
+region = { min = [0.05, 0.05, 0.0], max = [0.15, 0.15, 0.1] }
+
+[walls.floor]
+type = "frictional"
+facet = [[0.0, 0.0, 0.0], [0.2, 0.0, 0.0], [0.2, 0.2, 0.0], [0.0, 0.2, 0.0]]
+friction_angle = 30.0
+
+[solver]
+gravity = [0.0, 0.0, -9.81]
+
+[time]
+end = 0.01
+"""
+
+
+@pytest.mark.parametrize(
+    "override, match",
+    [
+        (None, None),
+        (
+            "walls.floor.facet=[[0.0, 0.0, 0.0], [0.2, 0.0, 0.0]]",
+            r"walls.floor.facet: must be three or more",
+        ),
+        (
+            "walls.floor.facet=[[0.0, 0.0], [0.2, 0.0], [0.2, 0.2]]",
+            r"walls.floor.facet: must be three or more points",
+        ),
+        (
+            "walls.floor.facet=[[0, 0, 0], [0.2, 0, 0], [0.2, 0.2, 0.01], [0, 0.2, 0]]",
+            r"walls.floor.facet: facet is not flat",
+        ),
+        (
+            "walls.floor.segment=[[0.0, 0.0], [0.2, 0.0]]",
+            r"walls.floor: give one of segment, polygon, facet, not",
+        ),
+    ],
+)
+def test_scenario_facet_wall_in_3d(tmp_path, override, match):
+    from dolfin_mpm.app import scenario
+
+    (tmp_path / "box.toml").write_text(BOX)
+    if match is None:
+        sim = scenario.build(scenario.load(tmp_path / "box.toml"))
+        (floor,) = sim.walls["floor"]
+        assert np.allclose(floor.normal, [0, 0, -1]) and floor.mu == pytest.approx(np.tan(np.radians(30.0)))
+        sim.solver.run(0.01, progress=False)
+        assert sim.solver.reaction(floor)[2] > 0.0  # the floor pushes the block up
+        return
+    with pytest.raises(scenario.ScenarioError, match=match):
+        scenario.load(tmp_path / "box.toml", [override])
+
+
+def test_scenario_segment_in_3d_and_facet_in_2d_are_refused(tmp_path):
+    from dolfin_mpm.app import scenario
+
+    text = BOX.replace("facet = [[0.0, 0.0, 0.0], [0.2, 0.0, 0.0], [0.2, 0.2, 0.0], [0.0, 0.2, 0.0]]",
+                       "segment = [[0.0, 0.0], [0.2, 0.0]]")  # fmt: skip
+    (tmp_path / "box.toml").write_text(text)
+    with pytest.raises(
+        scenario.ScenarioError, match=r"walls.floor.segment: walls as geometry in 3D are a facet"
+    ):
+        scenario.load(tmp_path / "box.toml")
+    text = SILO.read_text().replace(
+        "segment = [[0.0, 0.0], [0.05, 0.0]]", "facet = [[0, 0, 0], [1, 0, 0], [1, 1, 0]]"
+    )
+    (tmp_path / "silo.toml").write_text(text)
+    with pytest.raises(
+        scenario.ScenarioError, match=r"walls.bottom_left.facet: walls as geometry in 2D are a"
+    ):
+        scenario.load(tmp_path / "silo.toml")
+
+
+@pytest.mark.parametrize("x_e", [0.5, 0.53])
+def test_two_facets_carry_the_weight_over_each_wherever_their_edge_falls(x_e):
+    """3D: an elastic layer at rest on two facets that meet at x_e, on a node plane or between."""
+    thickness = 0.1
+    grid = dm.Grid(box((0, 0, -0.1), (1, 0.2, 0.2), (20, 4, 6)))
+    mat = dm.LinearElastic(E=1e6, nu=0.3, rho=1000.0)
+    P = dm.seed(grid, mat, ppc=4, where=lambda x: (x[2] > 0) & (x[2] < thickness))
+    K0 = 0.3 / 0.7
+    P.sigma[:] = 0.0
+    sz = -mat.rho * G * (thickness - P.x[:, 2])
+    P.sigma[:, 0, 0], P.sigma[:, 1, 1], P.sigma[:, 2, 2] = K0 * sz, K0 * sz, sz
+    left = dm.RigidWall([(0, 0, 0), (x_e, 0, 0), (x_e, 0.2, 0), (0, 0.2, 0)], name="left")
+    right = dm.RigidWall([(x_e, 0, 0), (1, 0, 0), (1, 0.2, 0), (x_e, 0.2, 0)], name="right")
+    sides = [
+        dm.SlipBC(
+            grid.nodes_where(lambda x: np.isclose(x[0], 0.0) | np.isclose(x[0], 1.0)), normal=(1, 0, 0)
+        ),
+        dm.SlipBC(
+            grid.nodes_where(lambda x: np.isclose(x[1], 0.0) | np.isclose(x[1], 0.2)), normal=(0, 1, 0)
+        ),
+    ]
+    solver = dm.Solver(grid, P, mat, bcs=[left, right, *sides], gravity=(0, 0, -G), damping=0.3)
+    solver.run(0.1, progress=False)
+
+    carried = [solver.reaction(wall)[2] for wall in (left, right)]
+    weight = solver.total_mass() * G
+    assert sum(carried) == pytest.approx(weight, rel=1e-3)  # at rest: the facets carry it all
+    spacing = 0.05 / 4  # a wall of nodes would end at 0.55 for x_e = 0.53, 0.02 off
+    assert abs(carried[0] / weight - x_e) < spacing
+    assert abs(carried[1] / weight - (1 - x_e)) < spacing

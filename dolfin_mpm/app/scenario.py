@@ -65,6 +65,8 @@ MODELS = {
     for name, cls in (("elastic", LinearElastic), ("drucker_prager", DruckerPragerViscoplastic))
 }
 _WALLS = ("fixed", "slip", "frictional", "velocity")
+#: The keys of a wall given as geometry (:class:`~dolfin_mpm.core.walls.RigidWall`).
+_GEOMETRY = ("segment", "polygon", "facet")
 _DIAGONALS = ("right", "left", "crossed", "right/left", "left/right")
 #: The ``[solver]`` options but ``gravity`` and ``on_exit``: (kind, default, interval or
 #: choices), as :class:`~dolfin_mpm.explicit.options.Options` declares them.
@@ -612,7 +614,7 @@ def _body(c: _Checker, t: dict, path: str, gdim: int, materials: dict, gravity, 
 
 def _wall(c: _Checker, t: dict, path: str, gdim: int) -> dict:
     kind = c.value(t, path, "type", "string", required=True, check=_WALLS)
-    if "segment" in t or "polygon" in t:
+    if any(k in t for k in _GEOMETRY):
         return _rigid_wall(c, t, path, gdim, kind)
     extra = {"slip": ("normal",), "frictional": ("normal", "friction_angle"), "velocity": ("velocity",)}
     c.keys(t, path, ("type", "region", *extra.get(kind, ())))
@@ -633,40 +635,55 @@ def _friction_angle(c: _Checker, t: dict, path: str) -> float:
 
 
 def _rigid_wall(c: _Checker, t: dict, path: str, gdim: int, kind: str) -> dict:
-    """A rigid wall as geometry: ``segment = [[x0, y0], [x1, y1]]`` or ``polygon = [[x, y], ...]``."""
-    key = "segment" if "segment" in t else "polygon"
+    """A rigid wall as geometry: ``segment``, ``polygon`` (a chain of segments) or ``facet``.
+
+    In 2D ``segment = [[x0, y0], [x1, y1]]`` or ``polygon = [[x, y], ...]``; in 3D
+    ``facet = [[x, y, z], ...]``, a flat convex polygon.
+    """
+    given = [k for k in _GEOMETRY if k in t]
+    key = given[0]
     c.keys(t, path, ("type", key, *(("friction_angle",) if kind == "frictional" else ())))
     w = {"type": kind, "region": None, key: None, "friction_angle": 0.0}
-    if "segment" in t and "polygon" in t:
-        c.fail(path, "give a segment or a polygon, not both")
+    if len(given) > 1:
+        c.fail(path, f"give one of {', '.join(_GEOMETRY)}, not {' and '.join(given)}")
         return w
     if kind not in ("slip", "frictional"):
         c.fail(f"{path}.type", f"a wall given as a {key} is 'slip' or 'frictional', got {_show(kind)}")
         return w
-    if gdim != 2:
-        c.fail(f"{path}.{key}", f"walls as geometry are segments in 2D, the mesh is {gdim}D (use a region)")
+    if (key == "facet") != (gdim == 3):
+        allowed = "a facet" if gdim == 3 else "a segment or a polygon"
+        c.fail(f"{path}.{key}", f"walls as geometry in {gdim}D are {allowed}, got a {key} (or use a region)")
         return w
     points = t[key]
+    least = {"segment": 2, "polygon": 2, "facet": 3}[key]
     shape_ok = (
         isinstance(points, list)
-        and (len(points) == 2 if key == "segment" else len(points) >= 2)
-        and all(isinstance(p, list) and len(p) == 2 for p in points)
+        and (len(points) == 2 if key == "segment" else len(points) >= least)
+        and all(isinstance(p, list) and len(p) == gdim for p in points)
         and all(isinstance(a, (int, float)) and not isinstance(a, bool) for p in points for a in p)
     )
     if not shape_ok:
-        count = "two points" if key == "segment" else "two or more points"
-        c.fail(f"{path}.{key}", f"must be {count} [[x, y], ...] of numbers, got {_show(points)}")
+        count = {"segment": "two points", "polygon": "two or more points", "facet": "three or more points"}[
+            key
+        ]
+        form = "[[x, y], ...]" if gdim == 2 else "[[x, y, z], ...]"
+        c.fail(f"{path}.{key}", f"must be {count} {form} of numbers, got {_show(points)}")
         return w
     if kind == "frictional":
         w["friction_angle"] = _friction_angle(c, t, path)
     try:
-        for k in range(len(points) - 1):
-            RigidWall(points[k : k + 2], name=f"{path}.{key}")
+        for piece in _pieces(key, points):
+            RigidWall(piece, name=f"{path}.{key}")
     except ValueError as e:
         c.fail(f"{path}.{key}", str(e).split(": ", 1)[1])
         return w
     w[key] = [[float(a) for a in p] for p in points]
     return w
+
+
+def _pieces(key: str, points: list) -> list:
+    """The points of each :class:`RigidWall` of a wall given as ``key``: a polygon's segments."""
+    return [points[k : k + 2] for k in range(len(points) - 1)] if key == "polygon" else [points]
 
 
 def _time(c: _Checker, t: dict | None) -> dict:
@@ -914,13 +931,10 @@ def build(cfg: dict, comm=MPI.COMM_WORLD) -> Simulation:
 
     walls = {}
     for name, w in cfg["walls"].items():
-        if w["region"] is None:  # a rigid wall as geometry: one RigidWall per segment
-            key = "segment" if w.get("segment") else "polygon"
+        if w["region"] is None:  # a rigid wall as geometry: one RigidWall per segment or facet
+            key = next(k for k in _GEOMETRY if w.get(k))
             mu = math.tan(math.radians(w["friction_angle"]))
-            points = w[key]
-            walls[name] = [
-                RigidWall(points[k : k + 2], mu, f"walls.{name}.{key}") for k in range(len(points) - 1)
-            ]
+            walls[name] = [RigidWall(piece, mu, f"walls.{name}.{key}") for piece in _pieces(key, w[key])]
             for wall in walls[name] if particles is not None else ():
                 try:
                     wall.check(grid, particles)

@@ -1,8 +1,10 @@
-"""Rigid walls as geometry: straight segments in 2D with Coulomb friction, wherever the nodes fall.
+"""Rigid walls as geometry with Coulomb friction, wherever the nodes fall: segments, facets.
 
-A wall is a segment ``a -> b`` with the material on its left (walk the material's boundary
-counter-clockwise); its unit normal ``n`` points to the right, into the wall. A particle is
-*over* the wall when its foot point on the wall's line lies on the segment.
+A 2D wall is a segment ``a -> b`` with the material on its left (walk the material's boundary
+counter-clockwise); a 3D wall is a facet, a planar convex polygon whose corners go
+counter-clockwise seen from the material. Its unit normal ``n`` points away from the material,
+into the wall. A particle is *over* the wall when its foot point on the wall's line (plane)
+lies on the segment (facet).
 
 Contact is imposed in two places:
 
@@ -13,8 +15,8 @@ Contact is imposed in two places:
   impulse onto the P1 nodes, the projection P2G makes of the momentum. A node under a plate
   takes the full condition, the node at a plate's edge the share of its patch the plate
   carries, a node under an opening none: the opening is as wide as the geometry says, on or
-  off the nodes. Walls on one line (a plate and the gate next to it) add their shares.
-- **At the particles**, in the move: a particle whose path would cross the segment stops on it
+  off the nodes. Walls on one line (plane) add their shares: a plate and the gate next to it.
+- **At the particles**, in the move: a particle whose path would cross the wall stops on it
   and loses its velocity into the wall. Where the grid condition is partial (at an edge) the
   interpolated velocity may point into the wall; the stop keeps the wall impenetrable there.
 """
@@ -37,110 +39,177 @@ __all__ = ["Contact", "RigidWall", "contacts", "stop_at_walls"]
 #: Nodes within this fraction of the smallest cell height in front of a wall's line count as on it.
 ON_LINE = 1e-6
 #: A particle stopped on a wall lands this fraction of the wall's length in front of it, and one
-#: found as far behind it counts as on it (round-off).
+#: found as far behind it counts as on it (round-off). Corners of a facet may lie this fraction
+#: of its size off its plane, and its turns may bend back as much.
 ROUNDOFF = 1e-12
+_FLAT = 1e-9
 
 _REAL = native.array(np.float64)
 _kernels = native.kernels(
     Path(__file__).with_suffix(".c"),
     {
         "contact_apply": (
-            ctypes.c_int64, native.array(np.int64), _REAL, ctypes.c_int32, _REAL, _REAL, _REAL, _REAL, _REAL,
+            ctypes.c_int64, ctypes.c_int32, native.array(np.int64), _REAL, ctypes.c_int32, _REAL, _REAL,
+            _REAL, _REAL, _REAL,
         ),
-        "near_lines": (ctypes.c_int64, _REAL, ctypes.c_int32, _REAL, _REAL, _REAL, native.array(np.int8)),
+        "near_lines": (
+            ctypes.c_int64, ctypes.c_int32, _REAL, ctypes.c_int32, _REAL, _REAL, _REAL, native.array(np.int8),
+        ),
     },
 )  # fmt: skip
 
 
 @dataclass(eq=False)  # a wall is itself: compared and hashed by identity
 class RigidWall:
-    """A rigid wall: a segment in 2D with Coulomb friction, at rest or in uniform translation.
+    """A rigid wall with Coulomb friction, at rest or in uniform translation.
 
     Args:
-        segment: end points ``[[x0, y0], [x1, y1]]`` [m] at t = 0, the material on the left
-            going from the first to the second.
+        points: the wall at t = 0 [m]. In 2D a segment, its ends ``[[x0, y0], [x1, y1]]``,
+            the material on the left going from the first to the second; in 3D a facet, the
+            corners ``[[x, y, z], ...]`` of a convex polygon in one plane (three or more),
+            counter-clockwise seen from the material.
         mu: friction coefficient, >= 0 (``tan`` of the wall friction angle; ``inf``: rough,
             no slip while in contact).
         name: what errors call it.
-        velocity: the wall's velocity [m/s], ``shape=(2,)``: at time t its ends are
-            ``segment + velocity * t``.
+        velocity: the wall's velocity [m/s], ``shape=(gdim,)``, default 0: at time t its
+            points are ``points + velocity * t``.
 
     """
 
-    segment: np.ndarray
+    points: np.ndarray
     mu: float = 0.0
     name: str = "wall"
-    velocity: tuple = (0.0, 0.0)
+    velocity: tuple | None = None
 
     def __post_init__(self):
-        s = np.asarray(self.segment, dtype=np.float64)
-        if s.shape != (2, 2) or not np.all(np.isfinite(s)):
+        s = np.asarray(self.points, dtype=np.float64)
+        if s.ndim != 2 or s.shape[1] not in (2, 3) or not np.all(np.isfinite(s)):
             raise ValueError(
-                f"{self.name}: segment must be two points of 2 finite coordinates [[x0, y0], [x1, y1]], "
-                f"got {self.segment!r}"
+                f"{self.name}: points must be a segment [[x0, y0], [x1, y1]] (2D) or a facet "
+                f"[[x, y, z], ...] (3D) of finite coordinates, got {self.points!r}"
             )
-        d = s[1] - s[0]
-        length = float(np.hypot(*d))
-        if not length > 1e-12 * max(1.0, float(np.abs(s).max())):
-            raise ValueError(f"{self.name}: segment is degenerate (its ends coincide), got {s.tolist()}")
+        self.gdim = gdim = s.shape[1]
+        if gdim == 2 and len(s) != 2:
+            raise ValueError(f"{self.name}: a wall in 2D is a segment of two points, got {len(s)}")
+        if gdim == 3 and len(s) < 3:
+            raise ValueError(f"{self.name}: a wall in 3D is a facet of three or more points, got {len(s)}")
         check_range(f"{self.name}: mu", self.mu, 0.0, np.inf, closed=(True, True))
-        v = np.asarray(self.velocity, dtype=np.float64)
-        if v.shape != (2,) or not np.all(np.isfinite(v)):
-            raise ValueError(f"{self.name}: velocity must be 2 finite numbers [m/s], got {self.velocity!r}")
-        self.segment, self.length, self.velocity = s, length, v
-        self.tangent = d / length
-        self.normal = np.array([self.tangent[1], -self.tangent[0]])  # right of a -> b: into the wall
+        v = np.zeros(gdim) if self.velocity is None else np.asarray(self.velocity, dtype=np.float64)
+        if v.shape != (gdim,) or not np.all(np.isfinite(v)):
+            raise ValueError(
+                f"{self.name}: velocity must be {gdim} finite numbers [m/s], got {self.velocity!r}"
+            )
+        self.points, self.velocity = s, v
+        size = max(1.0, float(np.abs(s).max()))
+        if gdim == 2:
+            d = s[1] - s[0]
+            self.length = float(np.hypot(*d))
+            if not self.length > 1e-12 * size:
+                raise ValueError(f"{self.name}: segment is degenerate (its ends coincide), got {s.tolist()}")
+            self.tangent = d / self.length
+            self.normal = np.array([self.tangent[1], -self.tangent[0]])  # right of a -> b: into the wall
+        else:
+            self._facet(s, size)
+
+    def _facet(self, s: np.ndarray, size: float) -> None:
+        """Normal, size and inward edge normals of a facet; refuses one that is not flat and convex."""
+        up = np.cross(s, np.roll(s, -1, axis=0)).sum(axis=0)  # Newell: twice the area, towards the material
+        area = 0.5 * float(np.linalg.norm(up))
+        extent = float(np.linalg.norm(s.max(axis=0) - s.min(axis=0)))
+        if not area > 1e-12 * extent * extent or not extent > 1e-12 * size:
+            raise ValueError(
+                f"{self.name}: facet is degenerate (no area: its points on a line, or not in order "
+                f"round it), got {s.tolist()}"
+            )
+        up /= 2.0 * area
+        off = np.abs((s - s.mean(axis=0)) @ up)
+        if off.max() > _FLAT * extent:
+            k = int(np.argmax(off))
+            raise ValueError(
+                f"{self.name}: facet is not flat: point {s[k].tolist()} lies {off[k]:.3g} m off the "
+                f"plane that fits its points"
+            )
+        edges = np.roll(s, -1, axis=0) - s
+        inward = np.cross(up, edges)  # left of each edge, seen from the material: the inside
+        inward /= np.linalg.norm(inward, axis=1)[:, None]
+        bend = np.einsum(
+            "ikc,ic->ik", s[None, :, :] - s[:, None, :], inward
+        )  # every corner against each edge
+        if bend.min() < -_FLAT * extent:
+            raise ValueError(
+                f"{self.name}: facet is not convex, or its points are not in order round it, got {s.tolist()}"
+            )
+        self.normal, self.length = -up, extent  # into the wall: away from the material
+        self._inward, self._offset = inward, np.einsum("ic,ic->i", s, inward)
 
     def start(self, time: float = 0.0) -> np.ndarray:
-        """The first end point [m] at ``time`` [s], ``shape=(2,)``."""
-        return self.segment[0] + self.velocity * time
+        """The first point [m] at ``time`` [s], ``shape=(gdim,)``."""
+        return self.points[0] + self.velocity * time
 
     def distance(self, x: np.ndarray, time: float = 0.0) -> np.ndarray:
-        """Signed distance [m] of points ``x`` (``(n, >=2)``) from the line at ``time`` [s].
+        """Signed distance [m] of points ``x`` (``(n, >=gdim)``) from the line (plane) at ``time`` [s].
 
         Positive on the material's side.
         """
         a, n = self.start(time), self.normal
-        return (a[0] - x[:, 0]) * n[0] + (a[1] - x[:, 1]) * n[1]
+        d = (a[0] - x[:, 0]) * n[0] + (a[1] - x[:, 1]) * n[1]
+        return d if self.gdim == 2 else d + (a[2] - x[:, 2]) * n[2]
 
     def over(self, x: np.ndarray, time: float = 0.0) -> np.ndarray:
-        """Whether the foot point of each of ``x`` (``(n, >=2)``) on the line lies on the segment.
+        """Whether the foot point of each of ``x`` (``(n, >=gdim)``) lies on the wall at ``time`` [s]."""
+        if self.gdim == 2:
+            a, t = self.start(time), self.tangent
+            s = (x[:, 0] - a[0]) * t[0] + (x[:, 1] - a[1]) * t[1]
+            return (s >= 0.0) & (s <= self.length)
+        return self._inside(x[:, :3] - self.velocity * time)
 
-        The wall as it is at ``time`` [s].
-        """
-        a, t = self.start(time), self.tangent
-        s = (x[:, 0] - a[0]) * t[0] + (x[:, 1] - a[1]) * t[1]
-        return (s >= 0.0) & (s <= self.length)
+    def _inside(self, y: np.ndarray) -> np.ndarray:
+        """Whether points ``y`` (``(n, 3)``, relative to the facet at t = 0) are over it."""
+        return np.all(y @ self._inward.T >= self._offset, axis=1)
+
+    def _reached(self, crossing: np.ndarray, time: float, elapsed: np.ndarray) -> np.ndarray:
+        """Whether ``crossing`` (``(k, gdim)``) lies on the wall as it is at ``time + elapsed`` [s]."""
+        if self.gdim == 2:
+            along = (crossing - self.start(time)) @ self.tangent - (self.velocity @ self.tangent) * elapsed
+            return (along >= 0.0) & (along <= self.length)
+        return self._inside(crossing - self.velocity * time - elapsed[:, None] * self.velocity)
 
     def check(self, grid: Grid, particles, time: float = 0.0) -> None:
-        """Raise ``ValueError`` for a wall not in 2D, outside the mesh, or with particles behind it.
+        """Raise ``ValueError`` for a wall not of the grid's dimension, outside it, or with material behind.
 
         ``particles`` (:class:`~dolfin_mpm.core.particles.Particles`): the material must lie on
-        the wall's left at ``time`` [s]; collective over the grid's ranks.
+        the wall's side at ``time`` [s]; collective over the grid's ranks.
         """
-        if grid.gdim != 2:
-            raise ValueError(f"{self.name}: rigid walls are segments in 2D, the grid is {grid.gdim}D")
+        g = self.gdim
+        if grid.gdim != g:
+            kind = "a segment in 2D" if g == 2 else "a facet in 3D"
+            raise ValueError(f"{self.name}: the wall is {kind}, the grid is {grid.gdim}D")
         comm = grid.comm
-        lo, hi = np.empty(2), np.empty(2)
-        comm.Allreduce(grid.node_x[:, :2].min(axis=0), lo, op=MPI.MIN)
-        comm.Allreduce(grid.node_x[:, :2].max(axis=0), hi, op=MPI.MAX)
+        lo, hi = np.empty(g), np.empty(g)
+        comm.Allreduce(grid.node_x[:, :g].min(axis=0), lo, op=MPI.MIN)
+        comm.Allreduce(grid.node_x[:, :g].max(axis=0), hi, op=MPI.MAX)
         slack = 1e-9 * float(np.max(hi - lo))
-        ends = self.segment + self.velocity * time
+        ends = self.points + self.velocity * time
         outside = ((ends < lo - slack) | (ends > hi + slack)).any(axis=1)
         if outside.any():
+            box = " x ".join(f"[{a:g}, {b:g}]" for a, b in zip(lo, hi))
+            kind = "segment" if g == 2 else "facet"
             raise ValueError(
-                f"{self.name}: segment point {ends[np.argmax(outside)].tolist()} lies outside the "
-                f"mesh [{lo[0]:g}, {hi[0]:g}] x [{lo[1]:g}, {hi[1]:g}]"
+                f"{self.name}: {kind} point {ends[np.argmax(outside)].tolist()} lies outside the mesh {box}"
             )
         x = particles.x
         behind = np.flatnonzero(self.over(x, time) & (self.distance(x, time) < -ON_LINE * grid.h_min))
         count = comm.allreduce(behind.size, op=MPI.SUM)
         if count:
-            first = comm.allgather(x[behind[0], :2].tolist() if behind.size else None)
+            first = comm.allgather(x[behind[0], :g].tolist() if behind.size else None)
+            side = (
+                f"on the left of the segment {self.points.tolist()}, going from its first point to its second"
+                if g == 2
+                else f"on the side from which the facet's points {self.points.tolist()} go counter-clockwise"
+            )
             raise ValueError(
                 f"{self.name}: {count} particles start behind the wall (the first at "
-                f"{next(p for p in first if p is not None)}); the material must lie on the left of "
-                f"the segment {self.segment.tolist()}, going from its first point to its second"
+                f"{next(p for p in first if p is not None)}); the material must lie {side}"
             )
 
 
@@ -159,14 +228,15 @@ class Contact:
         self._alpha = np.ascontiguousarray([alpha for _, alpha in members], dtype=np.float64)
         self._mu = np.array([wall.mu for wall, _ in members], dtype=np.float64)
         self._velocity = np.ascontiguousarray([wall.velocity for wall, _ in members], dtype=np.float64)
-        self.changes = np.zeros((len(members), len(nodes), 2))
+        self.changes = np.zeros((len(members), len(nodes), len(normal)))
 
     def apply(self, v: np.ndarray) -> None:
-        """Correct the nodal velocities ``v`` (``shape=(num_nodes, 2)``, C-contiguous) in place."""
+        """Correct the nodal velocities ``v`` (``shape=(num_nodes, gdim)``, C-contiguous) in place."""
         k, m = len(self.nodes), len(self.members)
         _kernels().contact_apply(
-            k, self.nodes, self.normal, m, self._alpha, self._mu, self._velocity, v, self.changes
-        )
+            k, len(self.normal), self.nodes, self.normal, m, self._alpha, self._mu, self._velocity, v,
+            self.changes,
+        )  # fmt: skip
 
     def forces(self, dt: float) -> dict:
         """Each wall's force [N] on the material in the last :meth:`apply`, by wall.
@@ -225,7 +295,7 @@ def contacts(
 
 
 def _near_lines(x: np.ndarray, walls: list, limits: list, time: float) -> np.ndarray:
-    """The points of ``x`` (``(n, 3)``) less than ``limits[w]`` [m] in front of some wall's line.
+    """The points of ``x`` (``(n, 3)``) less than ``limits[w]`` [m] in front of some wall's line (plane).
 
     One pass over the points for all walls, as they are at ``time`` [s]; ascending indices.
     """
@@ -234,13 +304,13 @@ def _near_lines(x: np.ndarray, walls: list, limits: list, time: float) -> np.nda
     normals = np.ascontiguousarray([w.normal for w in walls], dtype=np.float64)
     points = np.ascontiguousarray(x, dtype=np.float64).reshape(len(x), 3)
     limits = np.array(limits, dtype=np.float64)
-    _kernels().near_lines(len(x), points, len(walls), starts, normals, limits, near)
+    _kernels().near_lines(len(x), walls[0].gdim, points, len(walls), starts, normals, limits, near)
     return np.flatnonzero(near)
 
 
 def _same_line(a: tuple, b: tuple, tol: float) -> bool:
-    """Whether two walls' keys (normal, velocity, offset) are one line moving as one."""
-    return a[:4] == b[:4] and abs(a[4] - b[4]) <= tol
+    """Whether two walls' keys (normal, velocity, offset) are one line (plane) moving as one."""
+    return a[:-1] == b[:-1] and abs(a[-1] - b[-1]) <= tol
 
 
 def stop_at_walls(walls: list, x: np.ndarray, dx: np.ndarray, v: np.ndarray, time: float, dt: float) -> int:
@@ -253,8 +323,9 @@ def stop_at_walls(walls: list, x: np.ndarray, dx: np.ndarray, v: np.ndarray, tim
     walls = [w for w in walls if isinstance(w, RigidWall)]
     if not walls:
         return 0
-    stopped = 0
-    reach = np.sqrt(np.max(dx[:, 0] ** 2 + dx[:, 1] ** 2, initial=0.0))  # the longest move
+    stopped, g = 0, walls[0].gdim
+    moved2 = dx[:, 0] ** 2 + dx[:, 1] ** 2 if g == 2 else dx[:, 0] ** 2 + dx[:, 1] ** 2 + dx[:, 2] ** 2
+    reach = np.sqrt(np.max(moved2, initial=0.0))  # the longest move
     advances = [dt * (w.velocity @ w.normal) for w in walls]  # each wall's own move along its normal
     limits = [reach + abs(advance) for advance in advances]
     candidates = _near_lines(x, walls, limits, time)  # only these can reach a wall
@@ -263,18 +334,19 @@ def stop_at_walls(walls: list, x: np.ndarray, dx: np.ndarray, v: np.ndarray, tim
         reaches = phi0 < limit
         idx, phi0 = candidates[reaches], phi0[reaches]
         phi1 = phi0 - dx[idx, 0] * w.normal[0] - dx[idx, 1] * w.normal[1] + advance
+        if g == 3:
+            phi1 -= dx[idx, 2] * w.normal[2]
         cross = (phi1 < 0.0) & (phi0 >= -ROUNDOFF * w.length)  # those stopped before too
         idx, phi0, phi1 = idx[cross], phi0[cross], phi1[cross]
         if not idx.size:
             continue
         share = (phi0 / (phi0 - phi1))[:, None]
-        crossing = x[idx, :2] + share * dx[idx, :2]
-        along = (crossing - w.start(time)) @ w.tangent - (w.velocity @ w.tangent) * dt * share[:, 0]
-        on = (along >= 0.0) & (along <= w.length)
+        crossing = x[idx, :g] + share * dx[idx, :g]
+        on = w._reached(crossing, time, dt * share[:, 0])
         idx, phi1 = idx[on], phi1[on]
         # on the wall, a round-off's width in front of it: x + dx rounded cannot land behind it
-        dx[idx, :2] += (phi1 - ROUNDOFF * w.length)[:, None] * w.normal
-        vn = (v[idx, :2] - w.velocity) @ w.normal
-        v[idx, :2] -= np.maximum(vn, 0.0)[:, None] * w.normal
+        dx[idx, :g] += (phi1 - ROUNDOFF * w.length)[:, None] * w.normal
+        vn = (v[idx, :g] - w.velocity) @ w.normal
+        v[idx, :g] -= np.maximum(vn, 0.0)[:, None] * w.normal
         stopped += idx.size
     return stopped
