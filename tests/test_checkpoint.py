@@ -199,14 +199,15 @@ def test_sigint_sigterm_sigkill_and_resume_end_where_the_uninterrupted_run_ends(
     # Ctrl-C: a final checkpoint, a clean exit with 128 + SIGINT.
     proc = _start("run", str(scenario_file), "--output", str(folder))
     _stop_after_checkpoint(proc, folder, 0, signal.SIGINT)
-    out, err = proc.communicate(timeout=60)
+    _, err = proc.communicate(timeout=60)
     assert proc.returncode == 128 + signal.SIGINT, err
-    assert "stopped by SIGINT" in out and "dolfin-mpm resume" in out and "Traceback" not in err
+    assert err.startswith("warning: stopped by SIGINT") and "dolfin-mpm resume" in err  # also with -q
+    assert "Traceback" not in err
     interrupted = _step_of(folder / "checkpoint.h5")
     # SIGTERM likewise, after resuming.
     proc = _start("resume", str(folder))
     _stop_after_checkpoint(proc, folder, interrupted, signal.SIGTERM)
-    out, err = proc.communicate(timeout=60)
+    _, err = proc.communicate(timeout=60)
     assert proc.returncode == 128 + signal.SIGTERM, err
     # SIGKILL: no chance to write anything; the last periodic checkpoint stays.
     proc = _start("resume", str(folder))
@@ -268,7 +269,7 @@ def test_under_a_launcher_a_signal_checkpoints_and_a_killed_launcher_takes_its_r
     proc = start(folder)
     try:
         step = _stop_after_checkpoint(proc, folder, 0, signal.SIGINT)
-        out, err = proc.communicate(timeout=60)
+        _, err = proc.communicate(timeout=60)
     finally:
         _kill_group(proc)
     assert proc.returncode == (1 if open_mpi else 128 + signal.SIGINT), err
@@ -277,7 +278,7 @@ def test_under_a_launcher_a_signal_checkpoints_and_a_killed_launcher_takes_its_r
         if open_mpi
         else "stopped by SIGINT"
     )
-    assert said in out and "checkpoint written" in out and "Traceback" not in err
+    assert f"warning: {said}" in err and "checkpoint written" in err and "Traceback" not in err
     assert _step_of(folder / "checkpoint.h5") >= step
 
     folder = tmp_path / "killed"
@@ -497,3 +498,22 @@ def test_a_disk_that_fills_ends_the_run_cleanly_with_what_was_written_readable(
         times = ET.parse(folder / f"{name}.xdmf").getroot().find("Domain/Grid")
         with h5py.File(folder / f"{name}.h5", "r") as f:
             assert len(times) >= 1 and (name == "grid" or len(f) == len(times))
+
+
+def test_verbosity_quiet_plain_and_verbose(scenario_file, tmp_path, capsys):
+    """-q: nothing but warnings and errors; plain: the summary and the end; -v: also each
+    checkpoint and, at the end, the stage times and the fixed-point loop's counts."""
+    outputs = {}
+    for flag in ("-q", None, "-v"):
+        folder = tmp_path / str(flag)
+        args = ["run", str(scenario_file), "--output", str(folder), "--set", "time.end=0.01"]
+        assert main(args + ([flag] if flag else [])) == 0
+        outputs[flag] = capsys.readouterr()
+    assert outputs["-q"].out == "" and outputs["-q"].err == ""
+    plain, verbose = outputs[None].out, outputs["-v"].out
+    assert "done: t = " in plain and "checkpoint at step" not in plain and "stages [ms per step" not in plain
+    assert verbose.count("checkpoint at step") == 3  # at 4 and 8 ms and at the end
+    assert "stages [ms per step, over the 89 steps of this run]: " in verbose
+    assert "fixed-point loop, over the whole run: " in verbose and "pair lists rebuilt" in verbose
+    with pytest.raises(SystemExit):
+        main(["check", str(scenario_file), "-v"])  # check has nothing more to say

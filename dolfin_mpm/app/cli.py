@@ -6,7 +6,8 @@
 
 Exit status: 0 done, 1 the run failed (simulation or output), 2 bad input, 128 + signal
 number when stopped by SIGINT or SIGTERM (after writing a checkpoint). Under ``mpirun``
-every rank runs the same command; rank 0 prints. The launcher sets its own status: MPICH's
+every rank runs the same command; rank 0 prints (:mod:`dolfin_mpm.app.log`: ``-q`` only
+warnings and errors, ``-v`` the details too). The launcher sets its own status: MPICH's
 ``mpiexec`` exits with the ranks' 130 or 143; Open MPI's ``mpirun`` sends SIGTERM to the ranks
 for Ctrl-C as well, kills them 1 s later, and exits with 1 (:mod:`dolfin_mpm.parallel.launcher`).
 Ranks die with their launcher.
@@ -14,22 +15,14 @@ Ranks die with their launcher.
 
 import argparse
 import json
-import sys
 import warnings
 from pathlib import Path
 
 from mpi4py import MPI
 
 from dolfin_mpm.app import scenario
-from dolfin_mpm.app.runner import (
-    CHECKPOINT,
-    FolderLock,
-    Interrupted,
-    RunError,
-    Runner,
-    print_root,
-    write_run_info,
-)
+from dolfin_mpm.app.log import LOGGER, configure
+from dolfin_mpm.app.runner import CHECKPOINT, FolderLock, Interrupted, RunError, Runner, write_run_info
 from dolfin_mpm.explicit.solver import SimulationError
 from dolfin_mpm.io import checkpoint
 from dolfin_mpm.parallel.launcher import die_with_launcher, launcher_note
@@ -37,12 +30,8 @@ from dolfin_mpm.parallel.launcher import die_with_launcher, launcher_note
 __all__ = ["main"]
 
 
-def _warn(comm, message) -> None:
-    print_root(comm, f"warning: {message}", file=sys.stderr)
-
-
 def _fail(comm, message: str, code: int) -> int:
-    print_root(comm, f"error: {message}", file=sys.stderr)
+    LOGGER.error(message)
     return code
 
 
@@ -72,7 +61,7 @@ def _check(args, comm) -> int:
         sim = scenario.build(scenario.load(args.scenario, args.set), comm)
     except scenario.ScenarioError as e:
         return _scenario_errors(comm, args.scenario, e)
-    print_root(comm, f"{args.scenario}: OK. {_summary(sim)}")
+    LOGGER.info(f"{args.scenario}: OK. {_summary(sim)}")
     return 0
 
 
@@ -113,8 +102,8 @@ def _run(args, comm) -> int:
             sim = scenario.build(cfg, comm)
         except scenario.ScenarioError as e:
             return _scenario_errors(comm, path, e)
-        print_root(comm, f"{_summary(sim)}\nwriting to {folder}")
-        return _drive(Runner(sim, folder, progress=not args.quiet), comm, folder)
+        LOGGER.info(f"{_summary(sim)}\nwriting to {folder}")
+        return _drive(Runner(sim, folder, progress=_progress(args)), comm, folder)
 
     return _locked(folder, comm, start)
 
@@ -162,22 +151,46 @@ def _continue(args, comm, folder: Path, info: dict) -> int:
         return _fail(
             comm, f"time.end = {cfg['time']['end']:g} s is before the checkpoint's t = {s.time:.6g} s", 2
         )
-    print_root(comm, f"resuming {folder} at step {s.step_count}, t = {s.time:.6g} s")
-    return _drive(Runner(sim, folder, history=data["history"], progress=not args.quiet), comm, folder)
+    LOGGER.info(f"resuming {folder} at step {s.step_count}, t = {s.time:.6g} s")
+    return _drive(Runner(sim, folder, history=data["history"], progress=_progress(args)), comm, folder)
+
+
+def _progress(args) -> bool:
+    """The progress display: shown unless ``-q``."""
+    return not args.quiet
 
 
 def _drive(runner: Runner, comm, folder: Path) -> int:
     s = runner.sim.solver
+    first = s.step_count
     try:
         runner.run()
     except Interrupted as e:
-        print_root(comm, f"\n{e}{launcher_note(comm, e.signum)} at step {s.step_count}, t = {s.time:.6g} s; "
-                   f"checkpoint written. Continue with: dolfin-mpm resume {folder}")  # fmt: skip
+        runner.progress.end_line()
+        LOGGER.warning(f"{e}{launcher_note(comm, e.signum)} at step {s.step_count}, t = {s.time:.6g} s; "
+                       f"checkpoint written. Continue with: dolfin-mpm resume {folder}")  # fmt: skip
         return 128 + e.signum
     except (RunError, checkpoint.CheckpointError, SimulationError) as e:
+        runner.progress.end_line()
         return _fail(comm, str(e), 1)
-    print_root(comm, f"done: t = {s.time:.6g} s after {s.step_count} steps; results in {folder}")
+    LOGGER.info(f"done: t = {s.time:.6g} s after {s.step_count} steps; results in {folder}")
+    for line in _details(s, s.step_count - first):
+        LOGGER.debug(line)
     return 0
+
+
+def _details(s, count: int) -> list[str]:
+    """What ``-v`` adds at the end of a run of ``count`` steps: where the time went, what the loop did."""
+    times = ", ".join(f"{name} {1e3 * t / max(count, 1):.3g}" for name, t in s.timings.items() if t > 0.0)
+    lines = [f"stages [ms per step, over the {count} steps of this run]: {times}"]
+    fp = s.fixed_point
+    if s.averaging is not None and fp["steps"] > 0:
+        lines.append(
+            f"fixed-point loop, over the whole run: {fp['iterations'] / fp['steps']:.2f} iterations per "
+            f"step (at most {fp['max_iterations']}), {fp['unconverged']} steps unconverged; pair lists "
+            f"rebuilt {s.averaging.rebuilds} times"
+        )
+    return lines
 
 
 def parser() -> argparse.ArgumentParser:
@@ -188,20 +201,24 @@ def parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
     overrides = dict(action="append", default=[], metavar="KEY=VALUE",
                      help="override a scenario value, e.g. materials.sand.phi=35 (repeatable)")  # fmt: skip
-    quiet = dict(action="store_true", help="no progress display")
+    quiet = dict(action="store_true", help="no progress display, only warnings and errors")
+    verbose = dict(action="store_true", help="also each checkpoint, and the stage times at the end")
     check = sub.add_parser("check", help="validate a scenario and build it, without running")
     check.add_argument("scenario")
     check.add_argument("--set", **overrides)
+    check.add_argument("-q", "--quiet", **quiet)
     run = sub.add_parser("run", help="run a scenario")
     run.add_argument("scenario")
     run.add_argument("--output", help="run folder (default: results/<scenario name>)")
     run.add_argument("--set", **overrides)
     run.add_argument("--force", action="store_true", help="start over in a folder that holds a run")
-    run.add_argument("--quiet", **quiet)
+    run.add_argument("-q", "--quiet", **quiet)
+    run.add_argument("-v", "--verbose", **verbose)
     resume = sub.add_parser("resume", help="continue a run from its last checkpoint")
     resume.add_argument("folder")
     resume.add_argument("--set", **{**overrides, "help": "change time.end or output.* (repeatable)"})
-    resume.add_argument("--quiet", **quiet)
+    resume.add_argument("-q", "--quiet", **quiet)
+    resume.add_argument("-v", "--verbose", **verbose)
     return p
 
 
@@ -210,7 +227,8 @@ def main(argv=None) -> int:
     args = parser().parse_args(argv)
     comm = MPI.COMM_WORLD
     die_with_launcher(comm)  # no rank writes on after its launcher was killed
+    configure(comm, getattr(args, "verbose", False) - args.quiet)
     command = {"check": _check, "run": _run, "resume": _resume}[args.command]
     with warnings.catch_warnings():  # a warning is one line on rank 0, as it comes
-        warnings.showwarning = lambda message, *_, **__: _warn(comm, message)
+        warnings.showwarning = lambda message, *_, **__: LOGGER.warning(str(message))
         return command(args, comm)

@@ -9,10 +9,10 @@ takes exactly the steps the uninterrupted run would have taken.
 
 import csv
 import json
+import logging
 import os
 import signal
 import socket
-import sys
 from collections.abc import Callable
 from contextlib import contextmanager
 from pathlib import Path
@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
+from dolfin_mpm.app.log import LOGGER
 from dolfin_mpm.app.scenario import Simulation
 from dolfin_mpm.explicit.progress import Progress
 from dolfin_mpm.io import checkpoint
@@ -158,6 +159,10 @@ class Runner:
         history = {k: np.array(v, dtype=np.float64) for k, v in self.history.items()}
         checkpoint.write(self.folder / CHECKPOINT, self.sim, history)
         self._curves()
+        s = self.sim.solver
+        if LOGGER.isEnabledFor(logging.DEBUG):
+            self.progress.end_line()
+            LOGGER.debug(f"checkpoint at step {s.step_count}, t = {s.time:.6g} s")
 
     # -- the loop --------------------------------------------------------------------------------
     def run(self) -> None:
@@ -214,7 +219,7 @@ class Runner:
             except OSError as e:
                 message = f"writing the XDMF series in {self.folder} failed ({e}); {self._last_checkpoint()}"
                 if self.comm.size > 1:  # the other ranks are past the write: stop them all
-                    print(f"error: {message}", file=sys.stderr, flush=True)
+                    LOGGER.error(message)
                     self.comm.Abort(1)
                 raise RunError(message) from None
 
@@ -324,9 +329,3 @@ def replace_atomically(path: Path, write: Callable[[Path], None]) -> None:
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
-
-
-def print_root(comm, *args, file=None) -> None:
-    """``print`` on rank 0 only (``file``: ``sys.stdout`` as it is at the call)."""
-    if comm.rank == 0:
-        print(*args, file=sys.stdout if file is None else file, flush=True)

@@ -36,6 +36,7 @@ class Progress:
         self.every = 0.2 if self.tty else log_every
         self.t0 = self.last = time.perf_counter()
         self.steps = -1  # the rate counts from the end of the first step (start-up left out)
+        self._open = False  # a bar is drawn and its line not ended
 
     def due(self) -> bool:
         """Count a step; true when the display should be refreshed (never on silent ranks)."""
@@ -64,6 +65,14 @@ class Progress:
             if 0 < width <= len(line):
                 line = f"{100 * fraction:5.1f}%  {text}"[: width - 1]
             self.stream.write(f"\r{line}\x1b[K" + ("\n" if final else ""))
+            self._open = not final
         else:
             self.stream.write(f"{100 * fraction:5.1f}%  {text}\n")
         self.stream.flush()
+
+    def end_line(self) -> None:
+        """End the bar's line, so that what is printed next starts on its own."""
+        if self._open:
+            self.stream.write("\n")
+            self.stream.flush()
+            self._open = False
