@@ -44,6 +44,23 @@ def test_shear_band_width_set_by_the_radius_not_the_mesh():
     assert all(run["mean_iterations"] < 5 for run in nonlocal_)
 
 
+def test_silo3d_quick_discharge(tmp_path):
+    demo = load("demo_silo3d")
+    m_p = 1500.0 * 0.025**3 / 24  # a particle's: 4 in each of a cube's 6 tetrahedra
+    r = demo.run(h=0.025, radius=0.02, t_end=0.04, t_settle=0.005, output=tmp_path, progress=False)
+    assert abs(r["mass_final"] - r["mass_initial"]) < 1e-12 * r["mass_initial"]
+    assert r["kinetic_at_opening"] < 1e-6 * r["mass_initial"]  # at rest when the gate goes
+    assert r["discharged"][-1] > 50 * m_p and np.all(np.diff(r["discharged"]) >= 0.0)  # it flows
+    assert r["unconverged"] == 0
+    P = r["solver"].particles
+    inside = P.x[:, 2] > 0.0
+    assert np.all((P.x[inside, :2] > 0.0) & (P.x[inside, :2] < 0.2))  # no particle through a wall
+    below = ~inside  # what has passed the bottom did so through the outlet
+    assert np.all((P.x[below, :2] > 0.05 - 1e-9) & (P.x[below, :2] < 0.15 + 1e-9))
+    demo.plot_section(r["solver"], 0.025, tmp_path / "section.png")
+    assert (tmp_path / "particles.xdmf").exists() and (tmp_path / "section.png").exists()
+
+
 def test_silo_quick_discharge(tmp_path):
     demo = load("demo_silo")
     r = demo.run(h=0.025, radius=0.02, t_end=0.1, t_settle=0.01, output=tmp_path, progress=False)
