@@ -1,6 +1,7 @@
 """Particles on DOLFINx's mesh partition; meaningful under ``mpirun -n 2`` (``make test-mpi``),
 and true in serial too."""
 
+import csv
 import functools
 import itertools
 from contextlib import nullcontext
@@ -276,6 +277,12 @@ def test_resume_on_all_ranks_ends_where_the_uninterrupted_run_ends(tmp_path):
         assert reference.keys() == resumed.keys()
         for k in reference:
             assert np.array_equal(reference[k], resumed[k]), k
+        # The largest rank's particle count over the mean, at every output, also after the resume.
+        for f in ("reference", "run"):
+            rows = list(csv.DictReader(open(folder / f / "history.csv")))
+            imbalance = np.array([float(r["imbalance"]) for r in rows])
+            assert len(rows) > 10 and np.all(imbalance >= 1.0) and np.all(imbalance <= comm.size)
+            assert comm.size > 1 or np.all(imbalance == 1.0)
 
 
 def checkpoint_state(path) -> dict:

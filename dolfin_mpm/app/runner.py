@@ -10,6 +10,7 @@ takes exactly the steps the uninterrupted run would have taken.
 import csv
 import json
 import logging
+import math
 import os
 import signal
 import socket
@@ -30,7 +31,8 @@ from dolfin_mpm.post.figures import field_values, plot_curves, plot_particles
 __all__ = ["HISTORY", "FolderLock", "Interrupted", "RunError", "Runner"]
 
 #: Columns of the history recorded at each output time.
-HISTORY = ("t", "step", "kinetic", "strain", "potential", "total", "discharged", "particles")
+#: The columns of ``history.csv``; ``imbalance`` is the largest rank's particle count over the mean.
+HISTORY = ("t", "step", "kinetic", "strain", "potential", "total", "discharged", "particles", "imbalance")
 CHECKPOINT = "checkpoint.h5"
 
 
@@ -78,7 +80,9 @@ class Runner:
         self.comm = sim.solver.comm
         self.root = self.comm.rank == 0
         self.fresh = history is None
-        self.history = {k: list(history[k]) for k in HISTORY} if history else {k: [] for k in HISTORY}
+        self.history = {k: [] for k in HISTORY}
+        for k in HISTORY if history else ():  # a column the run's version did not record: nan
+            self.history[k] = list(history[k]) if k in history else [math.nan] * len(history["t"])
         gdim = sim.solver.grid.gdim
         self.mass_unit, self.energy_unit = ("kg/m", "J/m") if gdim == 2 else ("kg", "J")
         s, cfg = sim.solver, sim.config
@@ -115,7 +119,7 @@ class Runner:
             return
         e = s.energies()
         row = (s.time, s.step_count, e["kinetic"], e["strain"], e["potential"], e["total"])
-        row += (self.sim.discharged_mass(), s.num_particles())
+        row += (self.sim.discharged_mass(), s.num_particles(), s.imbalance())
         for k, v in zip(HISTORY, row):
             self.history[k].append(v)
         self._guard(self.folder / "history.csv", self._write_history)
@@ -206,7 +210,9 @@ class Runner:
                 self._output(output)
                 self._snapshot()
                 self._checkpoint()
-                self.progress.show(s.time, s.num_particles(), self.sim.discharged_mass(), final=True)
+                self.progress.show(
+                    s.time, s.num_particles(), self.sim.discharged_mass(), self._imbalance(), final=True
+                )
         finally:
             if output is not None:
                 output.close()
@@ -223,6 +229,10 @@ class Runner:
                     self.comm.Abort(1)
                 raise RunError(message) from None
 
+    def _imbalance(self) -> float | None:
+        """The particle imbalance over the ranks for the progress line; ``None`` on one rank."""
+        return self.sim.solver.imbalance() if self.comm.size > 1 else None
+
     def _poll(self, flag: dict) -> None:
         """Refresh the progress when due; on a signal, checkpoint and raise :class:`Interrupted`.
 
@@ -236,7 +246,7 @@ class Runner:
             signum, due = int(flags[0]), bool(flags[1])
         s = self.sim.solver
         if due:
-            self.progress.show(s.time, s.num_particles(), self.sim.discharged_mass())
+            self.progress.show(s.time, s.num_particles(), self.sim.discharged_mass(), self._imbalance())
         if signum:
             self._checkpoint()
             raise Interrupted(signum)

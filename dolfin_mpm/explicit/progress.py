@@ -45,8 +45,15 @@ class Progress:
         self.steps += 1
         return self.enabled and time.perf_counter() - self.last >= self.every
 
-    def show(self, t: float, particles: int, discharged: float | None = None, final: bool = False) -> None:
-        """Redraw the bar or write a log line for simulated time ``t`` [s] (``discharged``: if known)."""
+    def show(
+        self, t: float, particles: int, discharged: float | None = None, imbalance: float | None = None,
+        final: bool = False,
+    ) -> None:  # fmt: skip
+        """Redraw the bar or write a log line for simulated time ``t`` [s].
+
+        ``discharged`` (the mass through the sinks) and ``imbalance`` (the largest rank's
+        particles over the mean, under MPI) are shown when given.
+        """
         if not self.enabled:
             return
         now = time.perf_counter()
@@ -58,6 +65,8 @@ class Progress:
         text = f"t = {t:.4e} s  {rate:7.1f} steps/s  ETA {_clock(eta)}  particles {particles}"
         if discharged is not None:
             text += f"  discharged {discharged:.4g} {self.mass_unit}"
+        if imbalance is not None:
+            text += f"  imbalance {imbalance:.2f}"
         if self.tty:  # one line, cleared to its end; on a narrow terminal without the bar, cut
             bar = "#" * round(20 * fraction) + "-" * (20 - round(20 * fraction))
             line = f"[{bar}] {100 * fraction:5.1f}%  {text}"

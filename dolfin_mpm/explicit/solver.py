@@ -229,6 +229,12 @@ class Solver:
     def num_particles(self) -> int:
         return self.comm.allreduce(len(self.particles), MPI.SUM)
 
+    def imbalance(self) -> float:
+        """The largest rank's particle count over the mean count (1 on one rank, or with none)."""
+        counts = self.comm.allgather(len(self.particles))
+        mean = sum(counts) / len(counts)
+        return max(counts) / mean if mean > 0 else 1.0
+
     def total_mass(self) -> float:
         return self.comm.allreduce(float(self.particles.mass.sum()), MPI.SUM)
 
