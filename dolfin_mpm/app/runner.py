@@ -30,7 +30,6 @@ from dolfin_mpm.post.figures import field_values, plot_curves, plot_particles
 
 __all__ = ["HISTORY", "FolderLock", "Interrupted", "RunError", "Runner"]
 
-#: Columns of the history recorded at each output time.
 #: The columns of ``history.csv``; ``imbalance`` is the largest rank's particle count over the mean.
 HISTORY = ("t", "step", "kinetic", "strain", "potential", "total", "discharged", "particles", "imbalance")
 CHECKPOINT = "checkpoint.h5"
