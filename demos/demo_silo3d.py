@@ -98,7 +98,7 @@ def build(h=0.01, radius=5e-3, wall_friction=20.0, width=0.2, height=0.3, outlet
     averaging = dm.NonlocalAverage(radius, "cubic")
     solver = dm.Solver(
         grid, P, sand, bcs=[*walls, gate], gravity=(0.0, 0.0, -G), sinks=[sink], averaging=averaging,
-        volumetric="nodal",
+        volumetric="nodal", quadrature="cell",  # the plane silo's options
     )  # fmt: skip
     return solver, gate
 

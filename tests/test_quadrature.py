@@ -80,5 +80,5 @@ def test_the_solver_takes_the_option_and_refuses_an_unknown_one_by_name():
         ends.append(solver.particles.x - x0)
     moved = np.abs(ends[0]).max()
     assert 1e-6 * moved < np.abs(ends[1] - ends[0]).max() < 1e-3 * moved
-    with pytest.raises(ValueError, match="quadrature must be 'cell' or 'particle', got 'cells'"):
+    with pytest.raises(ValueError, match="quadrature must be 'particle' or 'cell', got 'cells'"):
         Options(quadrature="cells")

@@ -81,7 +81,7 @@ def test_every_problem_is_reported_with_its_toml_path(tmp_path):
         "walls.floor.friction_angle: must be in [0, 90) degrees, got 95.0",
         "time.end: must be > 0 s, got -1.0",
         'solver.stress: must be one of "cell", "particle", got "node"',
-        'solver.quadrature: must be one of "cell", "particle", got "cells"',
+        'solver.quadrature: must be one of "particle", "cell", got "cells"',
         'events[0].remove_walls: no wall named "gate" (walls: floor)',
     ]
     assert sorted(errors) == sorted(expected)

@@ -16,7 +16,7 @@ VOLUMETRIC = ("cell", "nodal")
 #: The stress a particle carries into the next step: its own, or its cell's mean.
 STRESS = ("cell", "particle")
 #: How ``R`` integrates each cell (:mod:`dolfin_mpm.core.quadrature`).
-QUADRATURE = ("cell", "particle")
+QUADRATURE = ("particle", "cell")
 
 
 #: The options that take whole numbers.
@@ -36,9 +36,10 @@ class Options:
         stress: ``"cell"`` (each particle takes the volume-weighted mean stress of its cell's
             points of its material at the start of each step, which leaves the nodal forces
             unchanged, see :mod:`dolfin_mpm.core.cell_stress`) or ``"particle"`` (its own).
-        quadrature: ``"cell"`` (each cell the material fills integrated over its area, see
-            :mod:`dolfin_mpm.core.quadrature`) or ``"particle"`` (``R`` summed over the points,
-            each with its volume).
+        quadrature: ``"particle"`` (``R`` summed over the points, each with its volume) or
+            ``"cell"`` (each cell the material fills integrated over its area, see
+            :mod:`dolfin_mpm.core.quadrature`: the silo's choice; it under-integrates dilatant
+            flow, ``docs/numerics.md``).
         flip: FLIP fraction of the particle velocity update, in [0, 1] (1 = pure FLIP).
         damping: local non-viscous (Cundall) damping factor, in [0, 1).
         courant: Courant factor of the automatic time step, in (0, 1].
@@ -57,7 +58,7 @@ class Options:
     scheme: str = "MUSL"
     volumetric: str = "cell"
     stress: str = "cell"
-    quadrature: str = "cell"
+    quadrature: str = "particle"
     flip: float = parameter(0.0, 1.0, closed=(True, True), default=1.0)
     damping: float = parameter(0.0, 1.0, closed=(True, False), default=0.0)
     courant: float = parameter(0.0, 1.0, closed=(False, True), default=0.5)
@@ -78,7 +79,7 @@ class Options:
         if self.stress not in STRESS:
             raise ValueError(f"stress must be 'cell' or 'particle', got {self.stress!r}")
         if self.quadrature not in QUADRATURE:
-            raise ValueError(f"quadrature must be 'cell' or 'particle', got {self.quadrature!r}")
+            raise ValueError(f"quadrature must be 'particle' or 'cell', got {self.quadrature!r}")
         for name in INTEGERS:
             if not isinstance(getattr(self, name), (int, np.integer)):
                 raise ValueError(f"{name} must be an integer, got {getattr(self, name)!r}")
