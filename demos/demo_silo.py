@@ -26,6 +26,8 @@ Runs and studies also run on several MPI ranks (``mpirun -n 2 python demos/demo_
 """
 
 import argparse
+import hashlib
+import inspect
 import json
 import math
 import time
@@ -320,6 +322,7 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, heig
         "particles": solver.num_particles(),
         "steps": solver.step_count,
         "seconds": elapsed,
+        "code": code_version(),
         "ranks": comm.size,
         "mean_iterations": fp["iterations"] / fp["steps"] if fp["steps"] else 1.0,
         "max_iterations": fp["max_iterations"],
@@ -487,6 +490,10 @@ def run_key(
     return f"h{1e3 * h:g}mm_r{1e3 * radius:g}mm_{weight}_wall{wall_friction:g}{rest}"
 
 
+#: The parameters that name a stored run.
+RUN_PARAMS = tuple(inspect.signature(run_key).parameters)
+
+
 def stored_run(folder: Path, **params) -> dict | None:
     """The stored result of the run with ``params`` in ``folder/runs``, ``None`` if there is none."""
     runs, key = Path(folder) / "runs", run_key(**params)
@@ -502,14 +509,30 @@ def stored_run(folder: Path, **params) -> dict | None:
     return result
 
 
-def cached_run(folder: Path, xdmf=False, progress=True, **params) -> dict:
+def code_version() -> str:
+    """A fingerprint of the code a run is made with: the package's sources and this demo's."""
+    digest = hashlib.sha256()
+    package = Path(dm.__file__).parent
+    for path in sorted([*package.rglob("*.py"), *package.rglob("*.c"), Path(__file__)]):
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:12]
+
+
+def cached_run(folder: Path, xdmf=False, progress=True, force=False, **params) -> dict:
     """The result of :func:`run` with ``params``, from ``folder/runs`` or computed and stored there.
 
-    The numbers go to ``<key>.json``, the arrays to ``<key>.npz``, each written (by rank 0)
-    under a temporary name and then renamed, so an interrupted study never leaves half a result.
+    A stored run made by other code (:func:`code_version`) is reused, and said so; ``force``
+    runs it again. The numbers go to ``<key>.json``, the arrays to ``<key>.npz``, each written
+    (by rank 0) under a temporary name and then renamed, so an interrupted study never leaves
+    half a result.
     """
-    stored = stored_run(folder, **params)
+    stored = None if force else stored_run(folder, **params)
     if MPI.COMM_WORLD.bcast(stored is not None, root=0):
+        made_by = stored.get("code") if stored is not None else None
+        if MPI.COMM_WORLD.rank == 0 and made_by != code_version():
+            made_by = made_by or "not recorded"
+            print(f"{run_key(**params)}: the stored run is reused (its code {made_by}, now {code_version()}; "
+                  "--force runs it again)", flush=True)  # fmt: skip
         return stored
     runs, key = Path(folder) / "runs", run_key(**params)
     runs.mkdir(parents=True, exist_ok=True)
@@ -726,6 +749,20 @@ def _spread(values) -> str:
     return f"{100 * (max(values) / min(values) - 1):.0f} %"
 
 
+def code_line(runs) -> str:
+    """Which code made the stored runs (:func:`code_version`), against the code now."""
+    made = {}
+    for r in runs:
+        made.setdefault(r.get("code", "not recorded"), set()).add(
+            run_key(**{k: r[k] for k in RUN_PARAMS if k in r})
+        )
+    now = code_version()
+    parts = [
+        f"{len(keys)} by {code}{' (this code)' if code == now else ''}" for code, keys in sorted(made.items())
+    ]
+    return f"Code of the stored runs: {', '.join(parts)}; this code is {now}."
+
+
 def report(folder: Path, path: Path) -> str:
     """Tables and figures of the stored runs of each study as Markdown in ``path``.
 
@@ -757,7 +794,9 @@ def report(folder: Path, path: Path) -> str:
         "the axis.",
         "",
         "Regenerate with `python demos/demo_silo.py --study all --report docs/silo.md`; each run is "
-        "stored in `results/silo/runs` and reused.",
+        "stored in `results/silo/runs` and reused (`--force` runs them again).",
+        "",
+        code_line([r for runs in studies.values() for r in runs]),
         "",
     ]
 
@@ -972,6 +1011,7 @@ def main():
     )
     parser.add_argument("--output", type=Path, default=Path("results/silo"))
     parser.add_argument("--report", type=Path, help="write the Markdown report of the stored studies here")
+    parser.add_argument("--force", action="store_true", help="run again the runs that are stored")
     args = parser.parse_args()
     if args.study is None and args.report is None:
         todo = [
@@ -993,7 +1033,7 @@ def main():
         todo = [p for name in (STUDIES if args.study == "all" else [args.study]) for p in STUDIES[name]]
     lo, hi = beverloo()
     for params in todo:
-        r = cached_run(args.output, xdmf=True, **params)
+        r = cached_run(args.output, xdmf=True, force=args.force, **params)
         if MPI.COMM_WORLD.rank > 0:
             continue
         key = run_key(**params)

@@ -151,3 +151,14 @@ def test_hopper_quick_discharge():
 def test_hopper_bad_input(sizes, match):
     with pytest.raises(ValueError, match=match):
         load("demo_hopper").build(**sizes)
+
+
+def test_silo_runs_record_the_code_that_made_them():
+    demo = load("demo_silo")
+    now = demo.code_version()
+    assert len(now) == 12 and int(now, 16) >= 0 and demo.code_version() == now
+    runs = [dict(h=0.01, radius=0.0, code=now), dict(h=0.005, radius=0.0), dict(h=0.01, radius=0.0, code=now)]
+    assert (
+        demo.code_line(runs)
+        == f"Code of the stored runs: 1 by {now} (this code), 1 by not recorded; this code is {now}."
+    )
