@@ -88,11 +88,7 @@ def held_bytes(obj, seen=None) -> int:
 def flowing_silo(h: float, t_from: float):
     """The silo of ``demo_silo.run`` on a mesh of ``h`` [m], discharged until ``t_from`` [s]."""
     solver, gate = demo_silo.build(h)
-    solver.time = -math.ceil(0.02 / solver.dt) * solver.dt  # demo_silo.run's settling
-    solver.damping = 0.2
-    solver.run(0.0, progress=False)
-    solver.damping = 0.0
-    solver.bcs = [bc for bc in solver.bcs if bc is not gate]
+    demo_silo.settle_and_open(solver, gate, 0.02, progress=False)  # demo_silo.run's settling
     solver.run(t_from, progress=False)
     return solver
 

@@ -235,6 +235,19 @@ class Monitor:
         return out
 
 
+def settle_and_open(solver, gate, t_settle: float, progress=True) -> float:
+    """Damped settling on the closed outlet for ``t_settle`` [s], then the gate removed at t = 0.
+
+    Returns the kinetic energy [J] (per metre in 2D) left at the opening.
+    """
+    solver.time = -math.ceil(t_settle / solver.dt) * solver.dt  # whole steps: the opening is at t = 0
+    solver.damping = 0.2
+    solver.run(0.0, progress=progress)
+    solver.damping = 0.0
+    solver.bcs = [bc for bc in solver.bcs if bc is not gate]
+    return solver.energies()["kinetic"]
+
+
 def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, height=0.3, outlet=0.1,
         ppc=4, shift=0.0, edge_cell=None, t_end=0.25, t_settle=0.02, output=None, interval=0.005,
         progress=True, comm=MPI.COMM_WORLD, law="max", volumetric="nodal", stress="cell",
@@ -267,13 +280,7 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, heig
     )  # fmt: skip
     m0 = solver.total_mass()
     t0 = time.perf_counter()
-    # ## Settling on the closed outlet (damped), then the opening
-    solver.time = -math.ceil(t_settle / solver.dt) * solver.dt  # whole steps: the opening is at t = 0
-    solver.damping = 0.2
-    solver.run(0.0, progress=progress)
-    solver.damping = 0.0
-    solver.bcs = [bc for bc in solver.bcs if bc is not gate]
-    kinetic_at_opening = solver.energies()["kinetic"]
+    kinetic_at_opening = settle_and_open(solver, gate, t_settle, progress)
     # ## Discharge
     xdmf = dm.Output(output, solver.comm) if output is not None else None
     y_c = 0.5 * outlet

@@ -27,7 +27,7 @@ import numpy as np
 from mpi4py import MPI
 
 sys.path.insert(0, str(Path(__file__).parent))
-from demo_silo import SAND, G, check_geometry, flow_rate  # the plane silo's sand and rules
+from demo_silo import SAND, G, check_geometry, flow_rate, settle_and_open  # the plane silo's
 
 from dolfin_mpm.post.plotting import figure
 
@@ -138,13 +138,7 @@ def run(h=0.01, radius=5e-3, wall_friction=20.0, width=0.2, height=0.3, outlet=0
     solver, gate = build(h, radius, wall_friction, width, height, outlet, ppc, comm)
     m0 = solver.total_mass()
     t0 = time.perf_counter()
-    # ## Settling on the closed outlet (damped), then the opening
-    solver.time = -math.ceil(t_settle / solver.dt) * solver.dt
-    solver.damping = 0.2
-    solver.run(0.0, progress=progress)
-    solver.damping = 0.0
-    solver.bcs = [bc for bc in solver.bcs if bc is not gate]
-    kinetic = solver.energies()["kinetic"]
+    kinetic = settle_and_open(solver, gate, t_settle, progress)  # damped, on the closed outlet
     # ## Discharge
     xdmf = dm.Output(output, solver.comm) if output is not None else None
     monitor = Monitor(xdmf)
