@@ -142,8 +142,8 @@ def report(res, path: Path, quick: bool):
         "plateau, a collapse load of the same non-unique problem, between the FE lower bound and "
         "Davis's estimate. The associated cone dilates and needs 0.3 m of settlement to collapse; "
         "its MPM footing (the grid nodes inside it, joined as its base sinks) runs on 10 cm cells "
-        "with one particle each, and the result depends on the loading speed: q_u / c = 27.8 at "
-        "3e-4 of the p-wave speed (the full run), 31.7 at 1e-3 (the quick one).",
+        f"with one particle each, loaded at {'1e-3' if quick else '3e-4'} of the p-wave speed; its "
+        "collapse load depends on that speed and on the numerical options (`docs/numerics.md`).",
         "",
         "| run | FE: Newton iterations per step | FE: solve [s] | FE: total [s] | MPM: particles | "
         "MPM: steps | MPM: total [s] |",
