@@ -517,3 +517,30 @@ def test_verbosity_quiet_plain_and_verbose(scenario_file, tmp_path, capsys):
     assert "fixed-point loop, over the whole run: " in verbose and "pair lists rebuilt" in verbose
     with pytest.raises(SystemExit):
         main(["check", str(scenario_file), "-v"])  # check has nothing more to say
+
+
+def test_particle_figures_are_named_by_step_and_time_with_units(scenario_file, tmp_path):
+    from dolfin_mpm.post.figures import field_unit
+
+    folder = tmp_path / "run"
+    overrides = ["time.end=0.008", "output.figures=true", "output.figure_interval=0.004"]
+    assert (
+        main(
+            [
+                "run",
+                str(scenario_file),
+                "--output",
+                str(folder),
+                "-q",
+                *[a for o in overrides for a in ("--set", o)],
+            ]
+        )
+        == 0
+    )
+    names = sorted(p.name for p in (folder / "figures").glob("particles_*.png"))
+    assert names[0] == "particles_00000000_t0s.png" and len(names) == 4  # every 4 ms and the end
+    assert all(n.startswith("particles_000000") and n.endswith("s.png") and "_t0.00" in n for n in names[1:])
+    assert field_unit("eps_vp_rate_nonlocal", 2) == "1/s" and field_unit("volume", 2) == "m²"
+    assert (
+        field_unit("volume", 3) == "m³" and field_unit("speed", 3) == "m/s" and field_unit("other", 2) == ""
+    )

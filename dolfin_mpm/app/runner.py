@@ -23,10 +23,11 @@ from mpi4py import MPI
 
 from dolfin_mpm.app.log import LOGGER
 from dolfin_mpm.app.scenario import Simulation
+from dolfin_mpm.core.walls import RigidWall
 from dolfin_mpm.explicit.progress import Progress
 from dolfin_mpm.io import checkpoint
 from dolfin_mpm.io.xdmf import Output
-from dolfin_mpm.post.figures import field_values, plot_curves, plot_particles
+from dolfin_mpm.post.figures import field_unit, field_values, plot_curves, plot_particles
 
 __all__ = ["HISTORY", "FolderLock", "Interrupted", "RunError", "Runner"]
 
@@ -140,11 +141,15 @@ class Runner:
             return
         x = self.comm.gather(s.particles.x, root=0)
         values = self.comm.gather(field_values(s.particles, field), root=0)
-        path = self.figures / f"particles_{s.step_count:08d}.png"
+        path = self.figures / f"particles_{s.step_count:08d}_t{s.time:.4g}s.png"  # in order, and when
+        walls = [w.points + w.velocity * s.time for w in s.bcs if isinstance(w, RigidWall) and w.gdim == 2]
+        unit = field_unit(field, s.grid.gdim)
 
         def plot():
             self.figures.mkdir(exist_ok=True)
-            plot_particles(path, np.concatenate(x), np.concatenate(values), field, s.time, self.bounds)
+            plot_particles(
+                path, np.concatenate(x), np.concatenate(values), field, s.time, self.bounds, unit, walls
+            )
 
         self._guard(path, plot)
 

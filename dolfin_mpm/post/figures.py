@@ -7,7 +7,22 @@ import numpy as np
 from dolfin_mpm.materials.tensor import invariants
 from dolfin_mpm.post.plotting import figure
 
-__all__ = ["field_values", "plot_curves", "plot_particles"]
+__all__ = ["field_unit", "field_values", "plot_curves", "plot_particles"]
+
+#: The unit of each figure field (the names are those of the XDMF output); lengths, masses and
+#: volumes per metre of depth in 2D.
+_UNITS = {
+    "speed": "m/s", "vx": "m/s", "vy": "m/s", "vz": "m/s", "p": "Pa", "q": "Pa", "eps_vp": "-",
+    "eps_vp_rate": "1/s", "eps_vp_rate_nonlocal": "1/s", "nonlocal_correction": "-",
+}  # fmt: skip
+
+
+def field_unit(name: str, gdim: int) -> str:
+    """The unit of the figure field ``name`` in a ``gdim``-dimensional run ("" if unknown)."""
+    per_depth = {"mass": ("kg/m", "kg"), "volume": ("m²", "m³"), "free_volume": ("m²", "m³")}
+    if name in per_depth:
+        return per_depth[name][gdim - 2]
+    return _UNITS.get(name, "")
 
 
 def field_values(particles, name: str) -> np.ndarray:
@@ -29,12 +44,16 @@ def field_values(particles, name: str) -> np.ndarray:
     return P.state[name].reshape(len(P), -1)[:, 0] if name in P.state and len(P) else np.zeros(len(P))
 
 
-def plot_particles(path: Path, x: np.ndarray, values: np.ndarray, field: str, t: float, bounds) -> None:
+def plot_particles(
+    path: Path, x: np.ndarray, values: np.ndarray, field: str, t: float, bounds, unit: str = "", walls=()
+) -> None:  # fmt: skip
     """Particles at time ``t`` [s] coloured by ``values`` (x–y plane; 3D runs are projected).
 
     Args:
         x: positions [m], ``shape=(n, 3)``; values: ``shape=(n,)``.
         bounds: ``(lower, upper)`` corners of the grid [m], fixing the axes between frames.
+        unit: the unit of ``values`` for the colour bar.
+        walls: segments ``shape=(2, 2)`` [m] drawn as walls (2D rigid walls where they are at ``t``).
 
     """
     lo, hi = np.asarray(bounds[0]), np.asarray(bounds[1])
@@ -44,10 +63,13 @@ def plot_particles(path: Path, x: np.ndarray, values: np.ndarray, field: str, t:
     with figure(path, figsize=(width + 1.2, height)) as ax:
         size = max(0.5, min(20.0, 3e4 / max(len(x), 1)))
         sc = ax.scatter(x[:, 0], x[:, 1], c=values, s=size, cmap="viridis", linewidths=0)
-        ax.figure.colorbar(sc, ax=ax, label=field)
+        for segment in walls:
+            ax.plot(segment[:, 0], segment[:, 1], "k-", lw=1.5)
+        ax.figure.colorbar(sc, ax=ax, label=f"{field} [{unit}]" if unit else field)
         ax.set(
-            xlim=(lo[0], hi[0]), ylim=(lo[1], hi[1]), xlabel="x [m]", ylabel="y [m]", title=f"t = {t:.4g} s"
-        )
+            xlim=(lo[0], hi[0]), ylim=(lo[1], hi[1]), xlabel="x [m]", ylabel="y [m]",
+            title=f"{field}, t = {t:.4g} s",
+        )  # fmt: skip
         ax.set_aspect("equal")
 
 
