@@ -132,9 +132,8 @@ class RigidWall:
         edges = np.roll(s, -1, axis=0) - s
         inward = np.cross(up, edges)  # left of each edge, seen from the material: the inside
         inward /= np.linalg.norm(inward, axis=1)[:, None]
-        bend = np.einsum(
-            "ikc,ic->ik", s[None, :, :] - s[:, None, :], inward
-        )  # every corner against each edge
+        # every corner against each edge: on its inner side, or on it
+        bend = np.einsum("ikc,ic->ik", s[None, :, :] - s[:, None, :], inward)
         if bend.min() < -_FLAT * extent:
             raise ValueError(
                 f"{self.name}: facet is not convex, or its points are not in order round it, got {s.tolist()}"
