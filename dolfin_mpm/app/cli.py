@@ -30,16 +30,16 @@ from dolfin_mpm.parallel.launcher import die_with_launcher, launcher_note
 __all__ = ["main"]
 
 
-def _fail(comm, message: str, code: int) -> int:
+def _fail(message: str, code: int) -> int:
     LOGGER.error(message)
     return code
 
 
-def _scenario_errors(comm, source, e: scenario.ScenarioError) -> int:
+def _scenario_errors(source, e: scenario.ScenarioError) -> int:
     if len(e.errors) == 1:
-        return _fail(comm, e.errors[0], 2)
+        return _fail(e.errors[0], 2)
     lines = "\n".join(f"  {line}" for line in e.errors)
-    return _fail(comm, f"{source}: {len(e.errors)} problems\n{lines}", 2)
+    return _fail(f"{source}: {len(e.errors)} problems\n{lines}", 2)
 
 
 def _summary(sim) -> str:
@@ -60,7 +60,7 @@ def _check(args, comm) -> int:
     try:
         sim = scenario.build(scenario.load(args.scenario, args.set), comm)
     except scenario.ScenarioError as e:
-        return _scenario_errors(comm, args.scenario, e)
+        return _scenario_errors(args.scenario, e)
     LOGGER.info(f"{args.scenario}: OK. {_summary(sim)}")
     return 0
 
@@ -70,10 +70,10 @@ def _run(args, comm) -> int:
     try:
         cfg = scenario.load(path, args.set)
     except scenario.ScenarioError as e:
-        return _scenario_errors(comm, path, e)
+        return _scenario_errors(path, e)
     folder = Path(args.output) if args.output else Path("results") / path.stem
     if (folder / CHECKPOINT).exists() and not args.force:
-        return _fail(comm, f"{folder} holds a run: continue it with `dolfin-mpm resume {folder}`, "
+        return _fail(f"{folder} holds a run: continue it with `dolfin-mpm resume {folder}`, "
                      "or start over with --force", 2)  # fmt: skip
     error = None
     if comm.rank == 0:
@@ -83,7 +83,7 @@ def _run(args, comm) -> int:
             error = f"cannot write to the output folder {folder} ({e.strerror or e})"
     error = comm.bcast(error, root=0)
     if error:
-        return _fail(comm, error, 2)
+        return _fail(error, 2)
 
     def start() -> int:  # with the folder locked: --force cannot clobber a live run
         error = None
@@ -97,13 +97,13 @@ def _run(args, comm) -> int:
                 error = f"cannot write to the output folder {folder} ({e.strerror or e})"
         error = comm.bcast(error, root=0)
         if error:
-            return _fail(comm, error, 2)
+            return _fail(error, 2)
         try:
             sim = scenario.build(cfg, comm)
         except scenario.ScenarioError as e:
-            return _scenario_errors(comm, path, e)
+            return _scenario_errors(path, e)
         LOGGER.info(f"{_summary(sim)}\nwriting to {folder}")
-        return _drive(Runner(sim, folder, progress=_progress(args)), comm, folder)
+        return _drive(Runner(sim, folder, progress=not args.quiet), comm, folder)
 
     return _locked(folder, comm, start)
 
@@ -113,7 +113,7 @@ def _locked(folder: Path, comm, work) -> int:
     lock = FolderLock(folder, comm)
     error = lock.acquire()
     if error:
-        return _fail(comm, error, 2)
+        return _fail(error, 2)
     try:
         return work()
     finally:
@@ -125,10 +125,10 @@ def _resume(args, comm) -> int:
     try:
         info = json.loads((folder / "run.json").read_text())
     except (OSError, ValueError) as e:
-        return _fail(comm, f"{folder} is not a run folder: cannot read run.json ({e})", 2)
+        return _fail(f"{folder} is not a run folder: cannot read run.json ({e})", 2)
     bad = [item for item in args.set if not item.split("=")[0].strip().startswith(checkpoint.RESUMABLE)]
     if bad:
-        return _fail(comm, f"--set {bad[0]}: a resumed run may change only time.end and output.*", 2)
+        return _fail(f"--set {bad[0]}: a resumed run may change only time.end and output.*", 2)
     return _locked(folder, comm, lambda: _continue(args, comm, folder, info))
 
 
@@ -138,26 +138,19 @@ def _continue(args, comm, folder: Path, info: dict) -> int:
         cfg = scenario.load(folder / "scenario.toml", overrides, base=Path(info["base"]))
         sim = scenario.build(cfg, comm)
     except scenario.ScenarioError as e:
-        return _scenario_errors(comm, folder / "scenario.toml", e)
+        return _scenario_errors(folder / "scenario.toml", e)
     try:
         data = checkpoint.read(folder / CHECKPOINT, comm)
         checkpoint.restore(sim, data)
     except checkpoint.CheckpointError as e:
-        return _fail(comm, str(e), 2)
+        return _fail(str(e), 2)
     if args.set and comm.rank == 0:
         write_run_info(folder, (folder / "scenario.toml").read_text(), {**info, "set": overrides})
     s = sim.solver
     if (cfg["time"]["end"] - s.time) / s.dt < -1e-9:
-        return _fail(
-            comm, f"time.end = {cfg['time']['end']:g} s is before the checkpoint's t = {s.time:.6g} s", 2
-        )
+        return _fail(f"time.end = {cfg['time']['end']:g} s is before the checkpoint's t = {s.time:.6g} s", 2)
     LOGGER.info(f"resuming {folder} at step {s.step_count}, t = {s.time:.6g} s")
-    return _drive(Runner(sim, folder, history=data["history"], progress=_progress(args)), comm, folder)
-
-
-def _progress(args) -> bool:
-    """The progress display: shown unless ``-q``."""
-    return not args.quiet
+    return _drive(Runner(sim, folder, history=data["history"], progress=not args.quiet), comm, folder)
 
 
 def _drive(runner: Runner, comm, folder: Path) -> int:
@@ -172,7 +165,7 @@ def _drive(runner: Runner, comm, folder: Path) -> int:
         return 128 + e.signum
     except (RunError, checkpoint.CheckpointError, SimulationError) as e:
         runner.progress.end_line()
-        return _fail(comm, str(e), 1)
+        return _fail(str(e), 1)
     LOGGER.info(f"done: t = {s.time:.6g} s after {s.step_count} steps; results in {folder}")
     for line in _details(s, s.step_count - first):
         LOGGER.debug(line)
