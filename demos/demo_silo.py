@@ -704,9 +704,10 @@ def edge_lines(runs, uniform) -> list[str]:
         return out
     near = [f"{1e3 * e:g} mm" for e, d in changes if abs(d) <= 0.03]
     far = [f"{1e3 * e:g} mm ({d:+.1%})" for e, d in changes if abs(d) > 0.03]
+    coarse = ", ".join(sorted({f"{1e3 * r['h']:g} mm" for r in runs if r.get("edge_cell")}))
     said = (
-        f"- Refined at the outlet edges alone, the 10 mm mesh gives the flow rate of the uniform mesh "
-        f"of its edge cells to 3 % with edge cells of {', '.join(near) or 'no size'}"
+        f"- Refined at the outlet edges alone, the {coarse} mesh gives the flow rate of the uniform "
+        f"mesh of its edge cells to 3 % with edge cells of {', '.join(near) or 'no size'}"
     )
     if far:
         said += f", not with {', '.join(far)}: see docs/numerics.md."
@@ -789,7 +790,8 @@ def report(folder: Path, path: Path) -> str:
         "gamma = 1000 1/s, N = 1), cubic weight and r = 5 mm unless stated, wall and bottom "
         "friction angle 20°, 4 particles per triangle, squares of two triangles of side h. "
         "Geostatic stresses (K0 = nu / (1 - nu)), 0.02 s of damped settling on the closed outlet, "
-        "opening at t = 0, discharge to t = 0.25 s.",
+        "opening at t = 0, discharge to t = 0.25 s. The numerics, unless a study varies them: the "
+        "nodal volumetric rate, the cell-mean stress and the cell quadrature (`docs/numerics.md`).",
         "",
         "- flow rate: slope of the mass that passed the outlet plane, fitted over t >= 0.1 s.",
         "- band, edge band: full width at half maximum of the e_vp_bar peak across the left half "

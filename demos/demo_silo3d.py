@@ -41,8 +41,8 @@ BEVERLOO_C = tuple(c * 4.0 / math.pi for c in (0.58, 0.64))
 def facet(corners, material) -> np.ndarray:
     """The corners of a facet in the order that puts ``material`` (a point) on its front side."""
     corners = np.asarray(corners, dtype=np.float64)
-    up = np.cross(corners, np.roll(corners, -1, axis=0)).sum(axis=0)
-    return corners if up @ (np.asarray(material) - corners.mean(axis=0)) > 0.0 else corners[::-1]
+    in_front = dm.RigidWall(corners).distance(np.atleast_2d(material))[0] > 0.0
+    return corners if in_front else corners[::-1]
 
 
 def build(h=0.01, radius=5e-3, wall_friction=20.0, width=0.2, height=0.3, outlet=0.1, ppc=4,

@@ -513,7 +513,8 @@ def test_verbosity_quiet_plain_and_verbose(scenario_file, tmp_path, capsys):
     plain, verbose = outputs[None].out, outputs["-v"].out
     assert "done: t = " in plain and "checkpoint at step" not in plain and "stages [ms per step" not in plain
     assert verbose.count("checkpoint at step") == 3  # at 4 and 8 ms and at the end
-    assert "stages [ms per step, over the 89 steps of this run]: " in verbose
+    steps = int(np.loadtxt(tmp_path / "-v" / "history.csv", delimiter=",", skiprows=1)[-1, 1])
+    assert f"stages [ms per step, over the {steps} steps of this run]: " in verbose
     assert "fixed-point loop, over the whole run: " in verbose and "pair lists rebuilt" in verbose
     with pytest.raises(SystemExit):
         main(["check", str(scenario_file), "-v"])  # check has nothing more to say

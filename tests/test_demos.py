@@ -153,10 +153,22 @@ def test_hopper_bad_input(sizes, match):
         load("demo_hopper").build(**sizes)
 
 
-def test_silo_runs_record_the_code_that_made_them():
+def test_silo_runs_record_the_code_that_made_them(tmp_path, capsys):
     demo = load("demo_silo")
     now = demo.code_version()
-    assert len(now) == 12 and int(now, 16) >= 0 and demo.code_version() == now
+    assert len(now) == 12 and set(now) <= set("0123456789abcdef") and demo.code_version() == now
+    # A stored run of other code is reused, and said so.
+    params = dict(h=0.01, radius=0.0)
+    key, runs = demo.run_key(**params), tmp_path / "runs"
+    runs.mkdir()
+    stored = {"stress": "cell", "quadrature": "cell", "code": "0123456789ab", "flow_rate": 1.0}
+    (runs / f"{key}.json").write_text(json.dumps(stored))
+    np.savez(runs / f"{key}.npz", t=np.zeros(2))
+    assert demo.cached_run(tmp_path, **params)["flow_rate"] == 1.0
+    said = capsys.readouterr().out
+    assert (
+        f"{key}: the stored run is reused (its code 0123456789ab, now {now}; --force runs it again)" in said
+    )
     runs = [dict(h=0.01, radius=0.0, code=now), dict(h=0.005, radius=0.0), dict(h=0.01, radius=0.0, code=now)]
     assert (
         demo.code_line(runs)

@@ -73,3 +73,28 @@ def test_failed_run_leaves_readable_files(tmp_path):
         for k in range(reader.num_steps):
             _, data, _ = reader.read_data(k)
             assert np.all(np.isfinite(data["velocity"]))
+
+
+def test_an_extended_series_drops_later_times_and_what_a_stopped_write_left(tmp_path):
+    """The times after ``after`` and a group written but never listed (a run killed between the
+    HDF5 flush and the XDMF rename) are gone; new times get their own data."""
+    from dolfin_mpm.io.xdmf import XDMFSeries
+
+    path, cells = tmp_path / "s.xdmf", np.arange(3, dtype=np.int32).reshape(-1, 1)
+    series = XDMFSeries(path)
+    for k in range(3):
+        series.write(0.1 * k, np.full((3, 3), float(k)), cells, "Polyvertex", {"p": np.full(3, float(k))})
+    series.h5.create_dataset("step3/p", data=np.zeros(5))  # orphaned: the XDMF never listed it
+    series.close()
+    series = XDMFSeries(path, after=0.1)
+    assert series.count == 2 and series.last_time == 0.1 and sorted(series.h5) == ["step0", "step1"]
+    series.write(0.15, np.full((3, 3), 7.0), cells, "Polyvertex", {"p": np.full(3, 7.0)})
+    series.close()
+    with meshio.xdmf.TimeSeriesReader(path) as reader:
+        reader.read_points_cells()
+        times = [reader.read_data(k)[0] for k in range(reader.num_steps)]
+        _, data, _ = reader.read_data(2)
+    assert times == [0.0, 0.1, 0.15] and np.array_equal(data["p"], np.full(3, 7.0))
+    with pytest.raises(ValueError, match="not a time series to extend"):
+        path.write_text("<Xdmf><Domain/></Xdmf>")
+        XDMFSeries(path, after=0.1)

@@ -44,6 +44,11 @@ G = 9.81
             0.0,
             r"^floor: facet is not convex, or its points are not",
         ),
+        (
+            [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 0, 0)],
+            0.0,
+            r"^floor: facet is degenerate \(its corners 3 and 0 coincide",
+        ),
         ([(0, 0, 0), (1, 0, 0), (1, 1, 0)], 0.0, None),  # a triangle is a facet
         ([(0.0, 0.0), (1.0, 0.0)], -0.1, r"^floor: mu must be in \[0, inf\], got -0.1"),
         ([(0.0, 0.0), (1.0, 0.0)], np.nan, r"^floor: mu must be in \[0, inf\], got nan"),
@@ -311,10 +316,13 @@ def box(x0, x1, n):
     )
 
 
-def test_block_sliding_down_an_inclined_facet_decelerates_at_g_sin_minus_mu_cos():
+@pytest.mark.parametrize("halves", [1, 2])
+def test_block_sliding_down_an_inclined_facet_decelerates_at_g_sin_minus_mu_cos(halves):
     """3D: a facet at 17 degrees, rotated 30 degrees about the vertical, on a structured box mesh.
 
-    No mesh plane follows it; the block slides straight down the slope."""
+    No mesh plane follows it; the block slides straight down the slope. Cut into two triangles
+    along a diagonal under the block, it is still one plane (the triangles' normals differ by
+    round-off), whose facets share the nodes along the cut."""
     theta, mu, turn = np.radians(17.0), 0.5, np.radians(30.0)
     grid = dm.Grid(box((0, 0, 0), (0.6, 0.6, 0.45), (15, 15, 12)))
     across = np.array([-np.sin(turn), np.cos(turn), 0.0])  # horizontal, along the slope's contour
@@ -331,8 +339,12 @@ def test_block_sliding_down_an_inclined_facet_decelerates_at_g_sin_minus_mu_cos(
     corners = (
         corners if np.cross(corners[1] - corners[0], corners[2] - corners[1]) @ up > 0 else corners[::-1]
     )
-    slope = dm.RigidWall(corners, mu=mu, name="slope")
-    assert np.allclose(slope.normal, -up)
+    if halves == 1:
+        facets = [corners]
+    else:  # two triangles, cut along a diagonal that runs under the block
+        facets = [[corners[0], corners[1], corners[2]], [corners[0], corners[2], corners[3]]]
+    slopes = [dm.RigidWall(f, mu=mu, name=f"slope {k}") for k, f in enumerate(facets)]
+    assert all(np.allclose(w.normal, -up) for w in slopes)
     mat = dm.LinearElastic(E=1e6, nu=0.3, rho=1000.0)
     thickness = 0.06
 
@@ -347,7 +359,7 @@ def test_block_sliding_down_an_inclined_facet_decelerates_at_g_sin_minus_mu_cos(
     P = dm.seed(grid, mat, ppc=4, where=block, velocity=tuple(down))  # 1 m/s down the slope
     t = local(P.x.T)[2]
     P.sigma[:] = (-mat.rho * G * np.cos(theta) * (thickness - t))[:, None, None] * np.outer(up, up)
-    solver = dm.Solver(grid, P, mat, bcs=[slope], gravity=(0, 0, -G), flip=0.0)
+    solver = dm.Solver(grid, P, mat, bcs=slopes, gravity=(0, 0, -G), flip=0.0)
     m = solver.total_mass()
     times, speeds, side = [], [], []
     while solver.time < 0.12:

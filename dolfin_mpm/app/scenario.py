@@ -642,11 +642,11 @@ def _rigid_wall(c: _Checker, t: dict, path: str, gdim: int, kind: str) -> dict:
     """
     given = [k for k in _GEOMETRY if k in t]
     key = given[0]
-    c.keys(t, path, ("type", key, *(("friction_angle",) if kind == "frictional" else ())))
     w = {"type": kind, "region": None, key: None, "friction_angle": 0.0}
     if len(given) > 1:
         c.fail(path, f"give one of {', '.join(_GEOMETRY)}, not {' and '.join(given)}")
         return w
+    c.keys(t, path, ("type", key, *(("friction_angle",) if kind == "frictional" else ())))
     if kind not in ("slip", "frictional"):
         c.fail(f"{path}.type", f"a wall given as a {key} is 'slip' or 'frictional', got {_show(kind)}")
         return w
@@ -752,7 +752,7 @@ class Simulation:
     Attributes:
         config: the validated scenario.
         solver: the solver (grid, particles, materials, walls, sinks, averaging).
-        walls: the boundary conditions of each named wall (a rigid wall's segments), in file order.
+        walls: the boundary conditions of each named wall (a rigid wall's segments or facet), in file order.
         applied: indices of ``config["events"]`` already applied.
 
     """

@@ -39,10 +39,13 @@ __all__ = ["Contact", "RigidWall", "contacts", "stop_at_walls"]
 #: Nodes within this fraction of the smallest cell height in front of a wall's line count as on it.
 ON_LINE = 1e-6
 #: A particle stopped on a wall lands this fraction of the wall's length in front of it, and one
-#: found as far behind it counts as on it (round-off). Corners of a facet may lie this fraction
-#: of its size off its plane, and its turns may bend back as much.
+#: found as far behind it counts as on it (round-off).
 ROUNDOFF = 1e-12
+#: Corners of a facet may lie this fraction of its size off its plane, its turns bend back as
+#: much, and no edge may be shorter.
 _FLAT = 1e-9
+#: Walls whose normals (and velocities) differ by this much at most lie on one line (plane).
+_PARALLEL = 1e-12
 
 _REAL = native.array(np.float64)
 _kernels = native.kernels(
@@ -130,6 +133,13 @@ class RigidWall:
                 f"plane that fits its points"
             )
         edges = np.roll(s, -1, axis=0) - s
+        short = np.linalg.norm(edges, axis=1) <= _FLAT * extent
+        if short.any():
+            k = int(np.argmax(short))
+            raise ValueError(
+                f"{self.name}: facet is degenerate (its corners {k} and {(k + 1) % len(s)} coincide), "
+                f"got {s.tolist()}"
+            )
         inward = np.cross(up, edges)  # left of each edge, seen from the material: the inside
         inward /= np.linalg.norm(inward, axis=1)[:, None]
         # every corner against each edge: on its inner side, or on it
@@ -166,12 +176,12 @@ class RigidWall:
         """Whether points ``y`` (``(n, 3)``, relative to the facet at t = 0) are over it."""
         return np.all(y @ self._inward.T >= self._offset, axis=1)
 
-    def _reached(self, crossing: np.ndarray, time: float, elapsed: np.ndarray) -> np.ndarray:
-        """Whether ``crossing`` (``(k, gdim)``) lies on the wall as it is at ``time + elapsed`` [s]."""
+    def _reached(self, crossing: np.ndarray, time: float, dt: float, share: np.ndarray) -> np.ndarray:
+        """Whether ``crossing`` (``(k, gdim)``) lies on the wall as it is at ``time + share dt`` [s]."""
         if self.gdim == 2:
-            along = (crossing - self.start(time)) @ self.tangent - (self.velocity @ self.tangent) * elapsed
+            along = (crossing - self.start(time)) @ self.tangent - (self.velocity @ self.tangent) * dt * share
             return (along >= 0.0) & (along <= self.length)
-        return self._inside(crossing - self.velocity * time - elapsed[:, None] * self.velocity)
+        return self._inside(crossing - self.velocity * time - (dt * share)[:, None] * self.velocity)
 
     def check(self, grid: Grid, particles, time: float = 0.0) -> None:
         """Raise ``ValueError`` for a wall not of the grid's dimension, outside it, or with material behind.
@@ -308,8 +318,11 @@ def _near_lines(x: np.ndarray, walls: list, limits: list, time: float) -> np.nda
 
 
 def _same_line(a: tuple, b: tuple, tol: float) -> bool:
-    """Whether two walls' keys (normal, velocity, offset) are one line (plane) moving as one."""
-    return a[:-1] == b[:-1] and abs(a[-1] - b[-1]) <= tol
+    """Whether two walls' keys (normal, velocity, offset) are one line (plane) moving as one.
+
+    Normals and velocities to round-off (two facets of one inclined plane differ by ~1e-16).
+    """
+    return np.allclose(a[:-1], b[:-1], rtol=0.0, atol=_PARALLEL) and abs(a[-1] - b[-1]) <= tol
 
 
 def stop_at_walls(walls: list, x: np.ndarray, dx: np.ndarray, v: np.ndarray, time: float, dt: float) -> int:
@@ -341,7 +354,7 @@ def stop_at_walls(walls: list, x: np.ndarray, dx: np.ndarray, v: np.ndarray, tim
             continue
         share = (phi0 / (phi0 - phi1))[:, None]
         crossing = x[idx, :g] + share * dx[idx, :g]
-        on = w._reached(crossing, time, dt * share[:, 0])
+        on = w._reached(crossing, time, dt, share[:, 0])
         idx, phi1 = idx[on], phi1[on]
         # on the wall, a round-off's width in front of it: x + dx rounded cannot land behind it
         dx[idx, :g] += (phi1 - ROUNDOFF * w.length)[:, None] * w.normal

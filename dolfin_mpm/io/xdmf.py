@@ -50,6 +50,8 @@ class XDMFSeries:
     def _extend(self, after: float) -> None:
         self.root = ET.parse(self.path).getroot()
         self.series = self.root.find("Domain/Grid")
+        if self.series is None or self.series.get("CollectionType") != "Temporal":
+            raise ValueError(f"{self.path}: not a time series to extend")
         grids = list(self.series)
         keep = [g for g in grids if float(g.find("Time").get("Value")) <= after]
         if keep != grids[: len(keep)]:
@@ -57,8 +59,9 @@ class XDMFSeries:
         for g in grids[len(keep) :]:
             self.series.remove(g)
         self.h5 = h5py.File(self.h5_path, "a")
-        for k in range(len(keep), len(grids)):
-            self.h5.pop(f"step{k}", None)
+        # the dropped times' data, and any a stopped write left beyond what the XDMF file lists
+        for name in [n for n in self.h5 if n.startswith("step") and int(n[4:]) >= len(keep)]:
+            del self.h5[name]
         self.count = len(keep)
 
     @property
@@ -158,15 +161,21 @@ class Output:
         self.folder = Path(folder)
         self.comm = comm
         self.particles = self.grid = None
-        last = None
+        last = error = None
         self._mesh = None
         if comm.rank == 0:
-            self.folder.mkdir(parents=True, exist_ok=True)
-            self.particles = XDMFSeries(self.folder / "particles.xdmf", after)
-            self.grid = XDMFSeries(self.folder / "grid.xdmf", after)
-            last = self.particles.last_time
+            try:
+                self.folder.mkdir(parents=True, exist_ok=True)
+                self.particles = XDMFSeries(self.folder / "particles.xdmf", after)
+                self.grid = XDMFSeries(self.folder / "grid.xdmf", after)
+                last = self.particles.last_time
+            except (OSError, ValueError, KeyError, ET.ParseError) as e:  # a file that is not a series
+                error = str(e)
+        last, error = comm.bcast((last, error), root=0)
+        if error is not None:  # on every rank: the others must not wait for rank 0
+            raise OSError(error)
         #: The time last written [s] (of the series extended, with ``after``).
-        self.last_time: float | None = comm.bcast(last, root=0)
+        self.last_time: float | None = last
 
     def write(self, solver) -> None:
         """Append the solver's current state (once per simulated time)."""
