@@ -5,6 +5,7 @@ import csv
 import functools
 import itertools
 from contextlib import nullcontext
+from pathlib import Path
 
 import dolfin_mpm as dm
 
@@ -300,3 +301,12 @@ def checkpoint_state(path) -> dict:
                     )
                 )
     return out
+
+
+def test_a_scenario_starts_with_its_particles_balanced_over_the_ranks():
+    """The column fills an eighth of its mesh: cut by cell count, one rank of two held it all."""
+    from dolfin_mpm.app import scenario
+
+    cfg = scenario.load(Path(__file__).parents[1] / "demos" / "column_collapse.toml")
+    sim = scenario.build(cfg, comm)
+    assert sim.solver.imbalance() <= 1.05

@@ -71,7 +71,7 @@ def test_every_problem_is_reported_with_its_toml_path(tmp_path):
         scenario.load(tmp_path / "bad.toml")
     errors = info.value.errors
     expected = [
-        "mesh.colour: unknown key (allowed: shape, lower, upper, cells, diagonal)",
+        "mesh.colour: unknown key (allowed: shape, lower, upper, cells, diagonal, partition)",
         'mesh.upper: must be an array of 2 numbers, got [1.0, "top"]',
         "materials.sand.nu: missing (must be in (-1, 0.5))",
         "materials.sand.phi: must be in (0, 90) degrees, got 120",
@@ -266,3 +266,21 @@ def test_a_run_started_whole_steps_before_zero_is_at_zero_exactly():
     assert s.time == 0.0 and s.step_count == k
     s.run_until(0.001)
     assert s.time == (s.step_count - k) * s.dt
+
+
+@pytest.mark.parametrize(
+    "value, match",
+    [('"xz"', r'mesh.partition: must be axes of "xy" in the order of the cuts'), ('""', "mesh.partition")],
+)
+def test_a_bad_partition_is_named(value, match):
+    with pytest.raises(scenario.ScenarioError, match=match):
+        scenario.load(DEMOS / "silo.toml", [f"mesh.partition={value}"])
+
+
+def test_cells_weigh_the_particles_the_bodies_seed_in_them():
+    """What the ranks' cuts balance at the start: ppc inside a body's region, nothing outside."""
+    cfg = scenario.load(DEMOS / "column_collapse.toml")
+    weight = scenario._seeded(cfg["bodies"], 1e-12)
+    centroids = np.array([[0.05, 0.1, 0.0], [0.3, 0.1, 0.0], [0.05, 0.22, 0.0]]).T
+    assert np.array_equal(weight(centroids), [4.0, 0.0, 0.0])
+    assert np.array_equal(scenario._seeded({}, 1e-12)(centroids), [1.0, 1.0, 1.0])  # no body: by count

@@ -462,9 +462,9 @@ def _mesh(c: _Checker, t: dict | None, base: Path) -> tuple[dict, int]:
     c.keys(
         t,
         "mesh",
-        ("shape", "lower", "upper", "cells", "diagonal")
+        ("shape", "lower", "upper", "cells", "diagonal", "partition")
         if gdim == 2
-        else ("shape", "lower", "upper", "cells"),
+        else ("shape", "lower", "upper", "cells", "partition"),
     )
     lower = c.value(t, "mesh", "lower", "numbers", required=True, size=gdim)
     upper = c.value(t, "mesh", "upper", "numbers", required=True, size=gdim)
@@ -503,6 +503,16 @@ def _mesh(c: _Checker, t: dict | None, base: Path) -> tuple[dict, int]:
     }
     if gdim == 2:
         m["diagonal"] = c.value(t, "mesh", "diagonal", "string", default="right", check=_DIAGONALS)
+    # The axes the ranks' cuts go across, in turn ("x": strips across x); default: each cut across
+    # the longest extent of what it cuts.
+    m["partition"] = c.value(t, "mesh", "partition", "string", default=None)
+    axes = "xyz"[:gdim]
+    if m["partition"] is not None and not (m["partition"] and set(m["partition"]) <= set(axes)):
+        c.fail(
+            "mesh.partition",
+            f'must be axes of {_show(axes)} in the order of the cuts, e.g. "x", got {_show(m["partition"])}',
+        )
+        m["partition"] = None
     return m, gdim
 
 
@@ -783,15 +793,41 @@ def _make_region(spec: dict, tol: float) -> Region:
     return Region(boxes=spec["boxes"], tol=tol)
 
 
-def _make_mesh(m: dict, comm):
+def _make_mesh(m: dict, comm, bodies: dict | None = None):
     if m["shape"] == "file":
         return compat.read_mesh(comm, m["file"], m["gdim"])
-    # On several ranks, cells dealt by count in coordinate bisection: the same partition in every
-    # run, which a resumed run needs (DOLFINx's graph partitioners may cut differently each time).
-    corners, count = [np.array(m["lower"]), np.array(m["upper"])], lambda c: np.ones(c.shape[1])
+    # On several ranks, cells dealt in coordinate bisection of the particles the bodies will seed
+    # in them: the same partition in every run, which a resumed run needs (DOLFINx's graph
+    # partitioners may cut differently each time).
+    corners = [np.array(m["lower"]), np.array(m["upper"])]
+    weight = _seeded(bodies or {}, 1e-9 * float(np.max(corners[1] - corners[0])))
+    axes = None if m.get("partition") is None else tuple("xyz".index(a) for a in m["partition"])
     if m["shape"] == "box":
-        return partition.create_box(comm, corners, m["cells"], weight=count)
-    return partition.create_rectangle(comm, corners, m["cells"], weight=count, diagonal=m["diagonal"])
+        return partition.create_box(comm, corners, m["cells"], weight=weight, axes=axes)
+    return partition.create_rectangle(
+        comm, corners, m["cells"], weight=weight, axes=axes, diagonal=m["diagonal"]
+    )
+
+
+def _seeded(bodies: dict, tol: float):
+    """Each cell's weight: the particles per cell of the bodies whose region holds its centroid.
+
+    Cells no body holds weigh nothing, so that every rank starts with about as many particles.
+    By count where no cell would weigh anything, or a region fails (it is named later, on the
+    nodes).
+    """
+
+    def weight(c: np.ndarray) -> np.ndarray:  # c: cell centroids, shape=(3, n)
+        w = np.zeros(c.shape[1])
+        try:
+            for b in bodies.values():
+                inside = np.ones(c.shape[1]) if b["region"] is None else _make_region(b["region"], tol)(c)
+                w += b["ppc"] * np.asarray(inside, dtype=bool)
+        except Exception:  # the region's own check on the nodes names the problem
+            return np.ones(c.shape[1])
+        return w if w.sum() > 0.0 else np.ones(c.shape[1])
+
+    return weight
 
 
 def _agree(comm, errors: list[str]) -> list[str]:
@@ -834,7 +870,7 @@ def build(cfg: dict, comm=MPI.COMM_WORLD) -> Simulation:
         if errors:
             raise ScenarioError(errors)
     try:
-        grid = Grid(_make_mesh(cfg["mesh"], comm))
+        grid = Grid(_make_mesh(cfg["mesh"], comm, cfg["bodies"]))
     except (ValueError, RuntimeError, OSError, MemoryError) as e:
         key = "mesh.file" if cfg["mesh"]["shape"] == "file" else "mesh"
         raise ScenarioError([f"{key}: {str(e) or 'out of memory'}"]) from None
