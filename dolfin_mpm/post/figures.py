@@ -76,8 +76,10 @@ def plot_particles(
 def plot_curves(folder: Path, history: dict[str, np.ndarray], mass_unit: str, energy_unit: str) -> list[Path]:
     """Curves against time in ``folder``; returns the files written.
 
-    ``energy.png``: kinetic, strain, potential change and total change; ``discharge.png`` (when
-    anything was discharged): the mass in the sinks.
+    ``energy.png``: kinetic, strain, potential change and total change, the last the work the
+    sand dissipated (plastic flow, wall friction, damping, the transfers) and the energy that
+    went into sinks, not yet told apart; ``discharge.png`` (when anything was discharged): the
+    mass in the sinks.
     """
     t = history["t"]
     written = [folder / "energy.png"]
@@ -85,7 +87,9 @@ def plot_curves(folder: Path, history: dict[str, np.ndarray], mass_unit: str, en
         ax.plot(t, history["kinetic"], label="kinetic")
         ax.plot(t, history["strain"], label="strain")
         ax.plot(t, history["potential"] - history["potential"][0], label="potential - initial")
-        ax.plot(t, history["total"] - history["total"][0], "k--", label="total - initial")
+        ax.plot(
+            t, history["total"] - history["total"][0], "k--", label="total - initial: dissipated and sunk"
+        )
         ax.set(xlabel="t [s]", ylabel=f"energy [{energy_unit}]")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
