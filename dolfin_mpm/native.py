@@ -3,11 +3,13 @@
 A source is compiled once per machine with the C compiler that DOLFINx's own just-in-time
 compilation needs anyway (``$CC``, default ``cc``), into a cache folder
 (``$DOLFIN_MPM_CACHE_DIR``, else ``$XDG_CACHE_HOME/dolfin_mpm`` or ``~/.cache/dolfin_mpm``).
-The library's name carries a hash of the source, compiler and flags, so an edited source is
-rebuilt; it is written under a temporary name and renamed, so MPI ranks that compile at the
-same time never load a half-written file. No fast-math: results are IEEE arithmetic, the same
-on every rank (math functions only do not set ``errno``, so that a loop of square roots
-vectorises).
+The library's name carries a hash of the source, compiler, flags and processor, so an edited
+source is rebuilt; it is written under a temporary name and renamed, so MPI ranks that compile
+at the same time never load a half-written file. The code is compiled for the processor it runs
+on (``-march=native``, where the compiler takes it: the streaming loops run two to three times
+faster in AVX2 than in the baseline's SSE2). No fast-math and no contraction into fused
+multiply-adds: results are IEEE arithmetic, bit for bit the same on every processor and rank
+(math functions only do not set ``errno``, so that a loop of square roots vectorises).
 """
 
 import ctypes
@@ -25,7 +27,9 @@ import numpy as np
 
 __all__ = ["array", "cache_dir", "kernels", "load"]
 
-FLAGS = ("-O3", "-std=c99", "-fno-math-errno", "-fPIC", "-shared")
+FLAGS = ("-O3", "-std=c99", "-fno-math-errno", "-ffp-contract=off", "-fPIC", "-shared")
+#: Tried first; dropped where the compiler refuses them.
+NATIVE = ("-march=native",)
 
 
 def cache_dir() -> Path:
@@ -43,7 +47,7 @@ def load(source: Path, signatures: dict[str, tuple]) -> ctypes.CDLL:
     """
     compiler = shlex.split(os.environ.get("CC", "cc"))
     text = source.read_bytes()
-    key = hashlib.sha256(b"\0".join([text, *map(str.encode, [*compiler, *FLAGS, platform.machine()])]))
+    key = hashlib.sha256(b"\0".join([text, *map(str.encode, [*compiler, *FLAGS, *NATIVE, _processor()])]))
     library = cache_dir() / f"{source.stem}-{key.hexdigest()[:16]}.so"
     if not library.exists():
         _compile(compiler, source, library)
@@ -58,6 +62,17 @@ def kernels(source: Path, signatures: dict[str, tuple]) -> Callable[[], ctypes.C
     return functools.cache(functools.partial(load, source, signatures))
 
 
+@functools.cache
+def _processor() -> str:
+    """What ``-march=native`` compiles for: the machine and, on Linux, the CPU's model and flags."""
+    try:
+        with open("/proc/cpuinfo") as f:
+            lines = [line for line in f if line.startswith(("model name", "flags", "Features"))]
+        return platform.machine() + "".join(sorted(set(lines)))
+    except OSError:
+        return f"{platform.machine()} {platform.processor()}"
+
+
 def _compile(compiler: list[str], source: Path, library: Path) -> None:
     try:
         library.parent.mkdir(parents=True, exist_ok=True)
@@ -68,13 +83,16 @@ def _compile(compiler: list[str], source: Path, library: Path) -> None:
             "set DOLFIN_MPM_CACHE_DIR to a writable folder"
         ) from None
     os.close(fd)
-    try:
-        done = subprocess.run(
-            [*compiler, *FLAGS, str(source), "-o", tmp, "-lm"], capture_output=True, text=True
-        )
+    error = None
+    for flags in ([*FLAGS, *NATIVE], FLAGS):
+        try:
+            done = subprocess.run([*compiler, *flags, str(source), "-o", tmp, "-lm"], capture_output=True, text=True)
+        except FileNotFoundError as e:
+            error = str(e)
+            break
         error = done.stderr if done.returncode else None
-    except FileNotFoundError as e:
-        error = str(e)
+        if error is None:
+            break
     if error is None:
         os.replace(tmp, library)
     else:

@@ -1,27 +1,47 @@
-/* The volume-weighted mean stress of each particle's (cell, material) group, in place.
- * sigma is component-first (9, n); w[p] is the weight (0: the point is left as it is and out
- * of the means); total (size) and sums (9 * size) are zeroed scratch. */
+/* The volume-weighted mean stress of each particle's (cell, material) group.
+ * sigma and out are component-first (9, n), symmetric (the upper triangle is read); the group of
+ * particle p is key[p] = cell[p] groups + material[p]; w[p] is its weight (0: the point keeps
+ * its stress and is out of the means); total (num_cells groups) and sums (6 of each) are
+ * zeroed scratch. A run of particles of one group (they come in runs where they are ordered
+ * by cell) sums in registers: the sums and their order are those of one term at a time. */
 #include <stdint.h>
 
-void cell_mean(int64_t n, int64_t size, const int64_t *restrict key, const double *restrict w,
-               double *restrict sigma, double *restrict total, double *restrict sums)
+static const int UPPER[6][2] = {{0, 0}, {0, 1}, {0, 2}, {1, 1}, {1, 2}, {2, 2}};
+
+void cell_mean(int64_t n, int32_t groups, const int32_t *restrict cell, const int32_t *restrict material,
+               const double *restrict w, const double *restrict sigma, double *restrict out,
+               double *restrict total, double *restrict sums)
 {
-  for (int64_t p = 0; p < n; ++p)
+  const double *S[6];
+  for (int c = 0; c < 6; ++c)
+    S[c] = sigma + (3 * UPPER[c][0] + UPPER[c][1]) * n;
+  int64_t p = 0;
+  while (p < n)
   {
-    const int64_t k = key[p];
-    total[k] += w[p];
-    for (int c = 0; c < 9; ++c)
-      sums[9 * k + c] += w[p] * sigma[c * n + p];
-  }
-  for (int64_t k = 0; k < size; ++k)
-    if (total[k] > 0.0)
-      for (int c = 0; c < 9; ++c)
-        sums[9 * k + c] /= total[k];
-  for (int64_t p = 0; p < n; ++p)
-    if (w[p] > 0.0)
+    const int64_t k = (int64_t)cell[p] * groups + (groups > 1 ? material[p] : 0);
+    double t = total[k], s[6];
+    for (int c = 0; c < 6; ++c)
+      s[c] = sums[6 * k + c];
+    for (; p < n && (int64_t)cell[p] * groups + (groups > 1 ? material[p] : 0) == k; ++p)
     {
-      const int64_t k = key[p];
-      for (int c = 0; c < 9; ++c)
-        sigma[c * n + p] = sums[9 * k + c];
+      t += w[p];
+      for (int c = 0; c < 6; ++c)
+        s[c] += w[p] * S[c][p];
     }
+    total[k] = t;
+    for (int c = 0; c < 6; ++c)
+      sums[6 * k + c] = s[c];
+  }
+  for (int c = 0; c < 6; ++c)
+  {
+    const int a = UPPER[c][0], b = UPPER[c][1];
+    double *restrict lower = out + (3 * b + a) * n, *restrict upper = out + (3 * a + b) * n;
+    for (int64_t q = 0; q < n; ++q)
+    {
+      const int64_t k = (int64_t)cell[q] * groups + (groups > 1 ? material[q] : 0);
+      const double mean = w[q] > 0.0 ? sums[6 * k + c] / total[k] : S[c][q];
+      upper[q] = mean;
+      lower[q] = mean;
+    }
+  }
 }

@@ -23,7 +23,7 @@ __all__ = ["cell_mean_stress"]
 _REAL = native.array(np.float64)
 _kernels = native.kernels(
     Path(__file__).with_suffix(".c"),
-    {"cell_mean": (ctypes.c_int64, ctypes.c_int64, native.array(np.int64), _REAL, _REAL, _REAL, _REAL)},
+    {"cell_mean": (ctypes.c_int64, ctypes.c_int32, *[native.array(np.int32)] * 2, *[_REAL] * 5)},
 )
 
 
@@ -46,14 +46,13 @@ def cell_mean_stress(
 
     """
     n = len(volume)
-    out = component_first(sigma).copy()  # (3, 3, n)
+    sigma = component_first(np.asarray(sigma, dtype=np.float64))  # (3, 3, n); no copy if already so
+    out = np.empty_like(sigma)
     if n == 0:
         return particle_first(out)
     groups = int(material.max()) + 1
-    key = np.ascontiguousarray(cells, dtype=np.int64)
-    if groups > 1:
-        key = key * groups + material
     w = np.ascontiguousarray(volume if keep is None else np.where(keep, 0.0, volume), dtype=np.float64)
     size = num_cells * groups
-    _kernels().cell_mean(n, size, key, w, out, np.zeros(size), np.zeros(9 * size))
+    cells, material = (np.ascontiguousarray(a, dtype=np.int32) for a in (cells, material))
+    _kernels().cell_mean(n, groups, cells, material, w, sigma, out, np.zeros(size), np.zeros(6 * size))
     return particle_first(out)

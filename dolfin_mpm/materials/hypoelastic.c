@@ -8,6 +8,10 @@
 #include <stdint.h>
 
 #define AT(t, a, b) (t)[(3 * (a) + (b)) * n + k]
+/* The components of one array do not overlap: GCC cannot prove it (they are apart by n, unknown
+ * at compile time) and without this leaves the loops unvectorised, 1.7x slower in SSE2 and 3x
+ * in AVX2. */
+#define IVDEP _Pragma("GCC ivdep")
 
 /* 3D (L of 3 x 3): sigma_trial = Q sigma Q^T + dt (lambda tr(d) I + 2 G d), d = sym L and
  * W = skew L, with the
@@ -19,6 +23,7 @@ static void space_trial(int64_t n, const double *restrict sigma, const double *r
                         double *restrict q)
 {
   const double lambda_dt = (K - 2.0 * G / 3.0) * dt, two_G_dt = 2.0 * G * dt;
+  IVDEP
   for (int64_t k = 0; k < n; ++k)
   {
     double d[3][3];
@@ -84,6 +89,7 @@ static void plane_strain_trial(int64_t n, const double *restrict sigma, const do
   const double *S00 = sigma, *S01 = sigma + n, *S02 = sigma + 2 * n, *S11 = sigma + 4 * n,
                *S12 = sigma + 5 * n, *S22 = sigma + 8 * n;
   const double *L00 = L, *L01 = L + n, *L10 = L + 2 * n, *L11 = L + 3 * n;
+  IVDEP
   for (int64_t k = 0; k < n; ++k)
   {
     const double d01 = 0.5 * (L01[k] + L10[k]), a01 = 0.25 * dt * (L01[k] - L10[k]);
