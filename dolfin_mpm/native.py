@@ -86,7 +86,8 @@ def _compile(compiler: list[str], source: Path, library: Path) -> None:
     error = None
     for flags in ([*FLAGS, *NATIVE], FLAGS):
         try:
-            done = subprocess.run([*compiler, *flags, str(source), "-o", tmp, "-lm"], capture_output=True, text=True)
+            command = [*compiler, *flags, str(source), "-o", tmp, "-lm"]
+            done = subprocess.run(command, capture_output=True, text=True)
         except FileNotFoundError as e:
             error = str(e)
             break

@@ -47,3 +47,37 @@ def test_an_unwritable_cache_is_named(tmp_path, monkeypatch):
         RuntimeError, match=r"cannot write the compiled kernels to .*cache.*DOLFIN_MPM_CACHE_DIR"
     ):
         native.load(source, {"nothing": ()})
+
+
+def test_a_compiler_refusing_native_code_builds_the_portable_one(tmp_path, monkeypatch):
+    cc = tmp_path / "cc"  # a compiler that knows no -march=native
+    cc.write_text('#!/bin/sh\nfor a in "$@"; do [ "$a" = -march=native ] && exit 1; done\nexec cc "$@"\n')
+    cc.chmod(0o755)
+    monkeypatch.setenv("DOLFIN_MPM_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setenv("CC", str(cc))
+    source = tmp_path / "twice.c"
+    source.write_text("void twice(long n, double *v) { for (long k = 0; k < n; ++k) v[k] *= 2.0; }\n")
+    v = np.arange(3.0)
+    native.load(source, {"twice": (ctypes.c_long, native.array(np.float64))}).twice(3, v)
+    assert np.array_equal(v, [0.0, 2.0, 4.0])
+
+
+def test_the_native_build_gives_the_portable_builds_bits(tmp_path, monkeypatch):
+    """No contraction into fused multiply-adds: the vectorised predictor's results are the baseline's."""
+    from dolfin_mpm.materials import elastic
+
+    rng = np.random.default_rng(3)
+    n = 1001  # not a multiple of the vector length: the loop's remainder too
+    sigma = rng.normal(size=(3, 3, n))
+    sigma = sigma + sigma.transpose(1, 0, 2)
+    Ls = {gdim: rng.normal(size=(gdim, gdim, n)) for gdim in (2, 3)}
+    results = []
+    for flags in (native.NATIVE, ()):
+        monkeypatch.setattr(native, "NATIVE", flags)
+        monkeypatch.setenv("DOLFIN_MPM_CACHE_DIR", str(tmp_path / f"cache{len(flags)}"))
+        lib = native.load(Path(elastic.__file__).with_name("hypoelastic.c"), elastic._SIGNATURES)
+        for gdim in (2, 3):
+            p, s, q = np.empty(n), np.empty((3, 3, n)), np.empty(n)
+            lib.hypoelastic_trial(n, gdim, sigma, Ls[gdim], 1e-3, 2.0, 1.5, p, s, q)
+            results.append(p.tobytes() + s.tobytes() + q.tobytes())
+    assert results[0] == results[2] and results[1] == results[3]
