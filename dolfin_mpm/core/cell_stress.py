@@ -34,7 +34,7 @@ def cell_mean_stress(
     """The volume-weighted mean stress of each particle's (cell, material) group.
 
     Args:
-        sigma: stresses [Pa], ``shape=(n, 3, 3)``.
+        sigma: stresses [Pa], ``shape=(n, 3, 3)``, symmetric (the upper triangle is read).
         volume: particle volumes, the weights, ``shape=(n,)``.
         cells: each particle's local cell, in ``[0, num_cells)``, ``shape=(n,)``.
         material: each particle's material index, ``shape=(n,)``.
