@@ -8,6 +8,11 @@
 
 static const int UPPER[6][2] = {{0, 0}, {0, 1}, {0, 2}, {1, 1}, {1, 2}, {2, 2}};
 
+static inline int64_t group_of(int64_t p, int32_t groups, const int32_t *cell, const int32_t *material)
+{
+  return (int64_t)cell[p] * groups + (groups > 1 ? material[p] : 0);
+}
+
 void cell_mean(int64_t n, int32_t groups, const int32_t *restrict cell, const int32_t *restrict material,
                const double *restrict w, const double *restrict sigma, double *restrict out,
                double *restrict total, double *restrict sums)
@@ -18,11 +23,11 @@ void cell_mean(int64_t n, int32_t groups, const int32_t *restrict cell, const in
   int64_t p = 0;
   while (p < n)
   {
-    const int64_t k = (int64_t)cell[p] * groups + (groups > 1 ? material[p] : 0);
+    const int64_t k = group_of(p, groups, cell, material);
     double t = total[k], s[6];
     for (int c = 0; c < 6; ++c)
       s[c] = sums[6 * k + c];
-    for (; p < n && (int64_t)cell[p] * groups + (groups > 1 ? material[p] : 0) == k; ++p)
+    for (; p < n && group_of(p, groups, cell, material) == k; ++p)
     {
       t += w[p];
       for (int c = 0; c < 6; ++c)
@@ -38,7 +43,7 @@ void cell_mean(int64_t n, int32_t groups, const int32_t *restrict cell, const in
     double *restrict lower = out + (3 * b + a) * n, *restrict upper = out + (3 * a + b) * n;
     for (int64_t q = 0; q < n; ++q)
     {
-      const int64_t k = (int64_t)cell[q] * groups + (groups > 1 ? material[q] : 0);
+      const int64_t k = group_of(q, groups, cell, material);
       const double mean = w[q] > 0.0 ? sums[6 * k + c] / total[k] : S[c][q];
       upper[q] = mean;
       lower[q] = mean;
