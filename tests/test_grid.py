@@ -10,7 +10,15 @@ from mpi4py import MPI
 
 import dolfin_mpm as dm
 from dolfin_mpm.core.locate import basis_at, locate
-from dolfin_mpm.core.transfer import gradient, internal_force, interpolate, scatter, volume_ratio
+from dolfin_mpm.core.transfer import (
+    gradient,
+    grid_to_particles,
+    internal_force,
+    interpolate,
+    particles_to_grid,
+    scatter,
+    volume_ratio,
+)
 from dolfin_mpm.explicit.step import p2g
 from dolfin_mpm.materials.tensor import component_first, particle_first
 
@@ -67,6 +75,47 @@ def test_transfers_equal_their_dense_sums(gdim):
         assert np.allclose(gradient(basis, nodal), L, rtol=0, atol=1e-12)
     R = sum(dN[j].T @ (volume[:, None] * sigma[:, :gdim, j]) for j in range(gdim))
     assert np.allclose(internal_force(basis, sigma, volume), R, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("gdim", [2, 3])
+def test_scatters_add_each_nodes_terms_in_particle_order(gdim):
+    # Particles in runs of one cell, a cell's run broken and resumed: the nodal sums the kernels
+    # hold in registers over a run are bit for bit one term at a time, in the particles' order.
+    msh = rectangle((0, 0), (1, 1), (3, 2)) if gdim == 2 else mesh.create_unit_cube(MPI.COMM_WORLD, 2, 1, 1)
+    grid = dm.Grid(msh)
+    x = random_points(grid, 60, seed=5)
+    cells, _ = locate(grid, x, np.full(len(x), -1, np.int32))
+    order = np.argsort(cells, kind="stable")
+    x = np.concatenate([x[order], x[order[:7]], x[order[::-3]]])
+    basis = basis_at(grid, *locate(grid, x, np.full(len(x), -1, np.int32)))
+    rng = np.random.default_rng(6)
+    n, nn = len(x), gdim + 1
+    mass, v, volume = rng.random(n), rng.normal(size=(n, gdim)), rng.random(n)
+    sigma = rng.normal(size=(n, 3, 3))
+    nodes = basis.dofs.T.ravel()  # (particle, node) pairs in the particles' order
+
+    def one_at_a_time(terms):  # np.add.at adds in index order, unbuffered
+        out = np.zeros((grid.num_nodes, *terms.shape[2:]))
+        np.add.at(out, nodes, terms.reshape(n * nn, *terms.shape[2:]))
+        return out
+
+    N = basis.N.T[:, :, None]  # (n, nn, 1)
+    dN = np.moveaxis(basis.dN, 2, 0)  # (n, nn, gdim)
+    f = np.zeros((n, nn, gdim))
+    for i in range(gdim):
+        for j in range(gdim):
+            f[:, :, i] += (sigma[:, i, j] * volume)[:, None] * dN[:, :, j]
+    want_m = one_at_a_time(N[:, :, 0] * mass[:, None])
+    want_p = one_at_a_time(N * (mass[:, None] * v)[:, None])
+    assert np.array_equal(scatter(basis, v), one_at_a_time(N * v[:, None]))
+    assert np.array_equal(scatter(basis, mass), want_m)
+    assert np.array_equal(internal_force(basis, sigma, volume), one_at_a_time(f))
+    m, momentum, force = particles_to_grid(basis, mass, v, sigma, volume)
+    assert np.array_equal(m, want_m) and np.array_equal(momentum, want_p)
+    assert np.array_equal(force, one_at_a_time(f))
+    a_node = rng.normal(size=(grid.num_nodes, gdim))
+    v_new, _, momenta = grid_to_particles(basis, a_node, a_node, v, 1e-3, 0.5, mass)
+    assert np.array_equal(momenta, one_at_a_time(N * (mass[:, None] * v_new)[:, None]))
 
 
 @pytest.mark.parametrize("gdim", [2, 3])

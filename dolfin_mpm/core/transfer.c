@@ -11,39 +11,86 @@
 
 #define INLINE static inline __attribute__((always_inline))
 
+/* Whether particle p lies in the cell of nodes d[0..nn): particles of one cell come in runs
+ * where they are ordered by cell, and a run's nodal sums are held in registers, starting from
+ * the stored sums: the terms and their order are those of one particle at a time, without a
+ * store and reload of the same node between consecutive particles. */
+INLINE int same_cell(int64_t n, int32_t nn, const int32_t *restrict dofs, int64_t p, const int64_t *d)
+{
+  for (int32_t a = 0; a < nn; ++a)
+    if (dofs[a * n + p] != d[a])
+      return 0;
+  return 1;
+}
+
+INLINE void cell_of(int64_t n, int32_t nn, const int32_t *restrict dofs, int64_t p, int64_t *d)
+{
+  for (int32_t a = 0; a < nn; ++a)
+    d[a] = dofs[a * n + p];
+}
+
+#define MAX_NODES 4 /* a tetrahedron */
+#define MAX_K 9
+
 /* out[dofs[a, p], c] += N[a, p] values[p, c]; out (num_nodes, k) holds the sums on entry. */
 INLINE void scatter_of(int64_t n, int32_t nn, const int32_t *restrict dofs, const double *restrict N, int32_t k,
                        const double *restrict values, double *restrict out)
 {
-  for (int64_t p = 0; p < n; ++p)
+  if (nn > MAX_NODES || k > MAX_K)
+  {
+    for (int64_t p = 0; p < n; ++p)
+      for (int32_t a = 0; a < nn; ++a)
+        for (int32_t c = 0; c < k; ++c)
+          out[(int64_t)dofs[a * n + p] * k + c] += N[a * n + p] * values[p * k + c];
+    return;
+  }
+  int64_t p = 0, d[MAX_NODES];
+  double o[MAX_NODES][MAX_K];
+  while (p < n)
+  {
+    cell_of(n, nn, dofs, p, d);
     for (int32_t a = 0; a < nn; ++a)
-    {
-      const double N_ap = N[a * n + p];
-      double *o = out + (int64_t)dofs[a * n + p] * k;
       for (int32_t c = 0; c < k; ++c)
-        o[c] += N_ap * values[p * k + c];
-    }
+        o[a][c] = out[d[a] * k + c];
+    for (; p < n && same_cell(n, nn, dofs, p, d); ++p)
+      for (int32_t a = 0; a < nn; ++a)
+        for (int32_t c = 0; c < k; ++c)
+          o[a][c] += N[a * n + p] * values[p * k + c];
+    for (int32_t a = 0; a < nn; ++a)
+      for (int32_t c = 0; c < k; ++c)
+        out[d[a] * k + c] = o[a][c];
+  }
 }
 
 /* out[dofs[a, p], i] += sum_j (sigma_ij[p] volume[p]) dN_aj[p]: the internal forces R of the
- * stresses sigma, component-first (3, 3, n); out (num_nodes, gdim) holds the sums on entry. */
+ * stresses sigma, component-first (3, 3, n); out (num_nodes, gdim) holds the sums on entry;
+ * gdim 2 or 3. */
 INLINE void internal_force_of(int64_t n, int32_t gdim, const int32_t *restrict dofs, const double *restrict dN,
                               const double *restrict sigma, const double *restrict volume,
                               double *restrict out)
 {
   const int32_t nn = gdim + 1;
-  for (int64_t p = 0; p < n; ++p)
+  int64_t p = 0, d[MAX_NODES];
+  double o[MAX_NODES][3];
+  while (p < n)
+  {
+    cell_of(n, nn, dofs, p, d);
     for (int32_t a = 0; a < nn; ++a)
-    {
-      double *o = out + (int64_t)dofs[a * n + p] * gdim;
       for (int32_t i = 0; i < gdim; ++i)
-      {
-        double f = 0.0;
-        for (int32_t j = 0; j < gdim; ++j)
-          f += sigma[(3 * i + j) * n + p] * volume[p] * dN[(a * gdim + j) * n + p];
-        o[i] += f;
-      }
-    }
+        o[a][i] = out[d[a] * gdim + i];
+    for (; p < n && same_cell(n, nn, dofs, p, d); ++p)
+      for (int32_t a = 0; a < nn; ++a)
+        for (int32_t i = 0; i < gdim; ++i)
+        {
+          double f = 0.0;
+          for (int32_t j = 0; j < gdim; ++j)
+            f += sigma[(3 * i + j) * n + p] * volume[p] * dN[(a * gdim + j) * n + p];
+          o[a][i] += f;
+        }
+    for (int32_t a = 0; a < nn; ++a)
+      for (int32_t i = 0; i < gdim; ++i)
+        out[d[a] * gdim + i] = o[a][i];
+  }
 }
 
 /* out[p, c] = sum_a N[a, p] nodal[dofs[a, p], c], out (n, k). */
@@ -107,14 +154,22 @@ INLINE void g2p_of(int64_t n, int32_t gdim, const int32_t *restrict dofs, const 
     }
   if (!musl)
     return;
-  for (int64_t p = 0; p < n; ++p)
+  int64_t p = 0, d[MAX_NODES];
+  double o[MAX_NODES][3];
+  while (p < n)
+  {
+    cell_of(n, nn, dofs, p, d);
     for (int32_t a = 0; a < nn; ++a)
-    {
-      const double N_ap = N[a * n + p];
-      double *o = momenta + (int64_t)dofs[a * n + p] * gdim;
       for (int32_t c = 0; c < gdim; ++c)
-        o[c] += N_ap * (mass[p] * v[p * gdim + c]);
-    }
+        o[a][c] = momenta[d[a] * gdim + c];
+    for (; p < n && same_cell(n, nn, dofs, p, d); ++p)
+      for (int32_t a = 0; a < nn; ++a)
+        for (int32_t c = 0; c < gdim; ++c)
+          o[a][c] += N[a * n + p] * (mass[p] * v[p * gdim + c]);
+    for (int32_t a = 0; a < nn; ++a)
+      for (int32_t c = 0; c < gdim; ++c)
+        momenta[d[a] * gdim + c] = o[a][c];
+  }
 }
 
 /* P2G in one pass over the particles: the nodal sums of the masses m_p, the momenta m_p v_p and
@@ -127,22 +182,45 @@ INLINE void p2g_of(int64_t n, int32_t gdim, const int32_t *restrict dofs, const 
                    double *restrict momentum, double *restrict force)
 {
   const int32_t nn = gdim + 1;
-  for (int64_t p = 0; p < n; ++p)
+  int64_t p = 0, d[MAX_NODES];
+  double ms[MAX_NODES], mv[MAX_NODES][3], fs[MAX_NODES][3];
+  while (p < n)
+  {
+    cell_of(n, nn, dofs, p, d);
     for (int32_t a = 0; a < nn; ++a)
     {
-      const double N_ap = N[a * n + p];
-      const int64_t d = dofs[a * n + p];
-      mass[d] += N_ap * m[p];
+      ms[a] = mass[d[a]];
       for (int32_t c = 0; c < gdim; ++c)
-        momentum[d * gdim + c] += N_ap * (m[p] * v_p[p * gdim + c]);
-      for (int32_t i = 0; i < gdim; ++i)
       {
-        double f = 0.0;
-        for (int32_t j = 0; j < gdim; ++j)
-          f += sigma[(3 * i + j) * n + p] * volume[p] * dN[(a * gdim + j) * n + p];
-        force[d * gdim + i] += f;
+        mv[a][c] = momentum[d[a] * gdim + c];
+        fs[a][c] = force[d[a] * gdim + c];
       }
     }
+    for (; p < n && same_cell(n, nn, dofs, p, d); ++p)
+      for (int32_t a = 0; a < nn; ++a)
+      {
+        const double N_ap = N[a * n + p];
+        ms[a] += N_ap * m[p];
+        for (int32_t c = 0; c < gdim; ++c)
+          mv[a][c] += N_ap * (m[p] * v_p[p * gdim + c]);
+        for (int32_t i = 0; i < gdim; ++i)
+        {
+          double f = 0.0;
+          for (int32_t j = 0; j < gdim; ++j)
+            f += sigma[(3 * i + j) * n + p] * volume[p] * dN[(a * gdim + j) * n + p];
+          fs[a][i] += f;
+        }
+      }
+    for (int32_t a = 0; a < nn; ++a)
+    {
+      mass[d[a]] = ms[a];
+      for (int32_t c = 0; c < gdim; ++c)
+      {
+        momentum[d[a] * gdim + c] = mv[a][c];
+        force[d[a] * gdim + c] = fs[a][c];
+      }
+    }
+  }
 }
 
 /* The exported loops, with the common sizes as constants: 2D (3 nodes) and 3D (4 nodes), k = 1
