@@ -328,6 +328,7 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, heig
         "e_vp_bar_max": comm.allreduce(float(e_vp_bar[P.x[:, 1] > 0.0].max(initial=0.0)), MPI.MAX),
         "particles": solver.num_particles(),
         "steps": solver.step_count,
+        "dt": solver.dt,
         "seconds": elapsed,
         "code": code_version(),
         "ranks": comm.size,

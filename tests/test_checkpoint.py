@@ -154,6 +154,24 @@ def test_resume_after_a_finished_shorter_run_is_bit_identical(scenario_file, ref
     assert_same_series(folder, scenario_file.parent / "reference", extra=(end,))  # and the first end
 
 
+def test_outputs_are_at_exact_multiples_of_the_interval_from_t_0(scenario_file, reference, tmp_path):
+    """The stable step is shortened to a whole fraction of the interval: t = 0, 0.002, ... 0.04 s
+    exactly, in the series, the history and the checkpoint; a start off the interval's grid too."""
+    folder = scenario_file.parent / "reference"
+    want = [k * 0.002 for k in range(21)]
+    assert [t for t, _ in series(folder)] == want and [t for t, _ in series(folder, "grid")] == want
+    assert np.loadtxt(folder / "history.csv", delimiter=",", skiprows=1)[:, 0].tolist() == want
+    assert [v for k, v in reference.items() if k.endswith("time")] == [0.04]
+    sim = scenario.build(scenario.load(scenario_file))
+    assert (0.002 / sim.solver.dt) == round(0.002 / sim.solver.dt) and sim.solver.dt <= sim.solver.critical_dt
+    run = tmp_path / "run"
+    overrides = ["time.start=-0.0031", "time.end=0.006"]
+    args = ["run", str(scenario_file), "--output", str(run), "-q", *[f"--set={o}" for o in overrides]]
+    assert main(args) == 0
+    times = [t for t, _ in series(run)]
+    assert times[0] <= -0.0031 and times[1:] == [-0.002, 0.0, 0.002, 0.004, 0.006], times
+
+
 def test_a_checkpoint_of_other_nodes_is_refused(scenario_file, reference):
     """As many nodes, elsewhere (as a mesh cut differently among ranks would give): refused."""
     shifted = ["mesh.lower=[0.0, -0.01]", "mesh.upper=[0.1, 0.11]"]  # 1 cm down: a node row each cm
@@ -539,8 +557,9 @@ def test_particle_figures_are_named_by_step_and_time_with_units(scenario_file, t
         == 0
     )
     names = sorted(p.name for p in (folder / "figures").glob("particles_*.png"))
-    assert names[0] == "particles_00000000_t0s.png" and len(names) == 4  # every 4 ms and the end
-    assert all(n.startswith("particles_000000") and n.endswith("s.png") and "_t0.00" in n for n in names[1:])
+    # every 4 ms from t = 0, the end one of them: the step fits the output interval
+    assert [n.split("_t")[1] for n in names] == ["0s.png", "0.004s.png", "0.008s.png"], names
+    assert all(n.startswith("particles_000000") for n in names)
     assert field_unit("eps_vp_rate_nonlocal", 2) == "1/s" and field_unit("volume", 2) == "m²"
     assert (
         field_unit("volume", 3) == "m³" and field_unit("speed", 3) == "m/s" and field_unit("other", 2) == ""

@@ -137,6 +137,25 @@ def test_automatic_time_step():
     assert solver.dt == pytest.approx(0.4 * h / mat.p_wave_speed(), rel=1e-12)
 
 
+def test_the_step_fits_an_interval_and_only_before_the_first_step():
+    grid = dm.Grid(rectangle((0, 0), (1, 1), (4, 4)))
+    mat = dm.LinearElastic(E=1e6, nu=0.3, rho=1500.0)
+    solver = dm.Solver(grid, dm.seed(grid, mat, ppc=1), mat, courant=0.4)
+    stable = solver.dt
+    solver.fit_step(0.01)
+    k = round(0.01 / solver.dt)
+    assert solver.dt == 0.01 / k and stable * k / (k + 1) < solver.dt <= stable  # the longest that fits
+    solver.fit_step(0.01)
+    assert solver.dt == 0.01 / k  # fits already: unchanged
+    solver.fit_step(0.5 * stable)
+    assert solver.dt == 0.5 * stable  # an interval below the step: one step each
+    with pytest.raises(ValueError, match="interval"):
+        solver.fit_step(-1.0)
+    solver.step()
+    with pytest.raises(RuntimeError, match="at step 1; fit the step before the first"):
+        solver.fit_step(0.01)
+
+
 @pytest.mark.parametrize("mu", [0.2, 0.5])
 def test_block_sliding_on_a_frictional_floor_decelerates_at_mu_g(mu):
     grid = dm.Grid(rectangle((0, 0), (1.0, 0.1), (40, 4)))

@@ -207,8 +207,9 @@ class Runner:
                     (steps["checkpoint_interval"], self._checkpoint),
                     (1, lambda: self._poll(flag)),
                 ]
+                origin = s.step_count - round(s.time / s.dt)  # the step at t = 0: counts go from there
                 for t_target, event in [*schedule, (cfg["time"]["end"], None)]:
-                    s.run_until(t_target, actions)
+                    s.run_until(t_target, actions, origin)
                     if event is not None:
                         self.sim.apply_event(event)
                 self._output(output)
@@ -222,6 +223,7 @@ class Runner:
                 output.close()
 
     def _output(self, output) -> None:
+        self._land()
         self._record()
         if output is not None:
             try:
@@ -232,6 +234,16 @@ class Runner:
                     LOGGER.error(message)
                     self.comm.Abort(1)
                 raise RunError(message) from None
+
+    def _land(self) -> None:
+        """Put the clock on the multiple of the output interval it is at to round-off (1e-9 of a step).
+
+        ``k dt`` and ``k' interval`` differ in their last bits: the files say 0.025, not 0.025000000000000001.
+        """
+        s, interval = self.sim.solver, self.sim.config["output"]["interval"]
+        k = round(s.time / interval)
+        if abs(s.time - k * interval) <= 1e-9 * s.dt:
+            s.time = k * interval
 
     def _imbalance(self) -> float | None:
         """The particle imbalance over the ranks for the progress line; ``None`` on one rank."""

@@ -1022,6 +1022,9 @@ def build(cfg: dict, comm=MPI.COMM_WORLD) -> Simulation:
         )  # fmt: skip
     except ValueError as e:
         raise ScenarioError([f"solver: {e}"]) from None
+    interval = cfg["output"]["interval"]
+    if s["dt"] is None and 0.0 < solver.dt < INF and interval / solver.dt < MAX_STEPS:
+        solver.fit_step(interval)  # outputs at exact multiples of the interval
     errors = _step_errors(cfg, solver.dt)
     if errors:
         if solver.start_speed > max(m.p_wave_speed() for m in materials):  # the bodies set the step
@@ -1033,7 +1036,7 @@ def build(cfg: dict, comm=MPI.COMM_WORLD) -> Simulation:
         raise ScenarioError(errors)
     start = cfg["time"]["start"]
     # A negative start is whole steps before t = 0, so that t = 0 (an opening, say) is a step.
-    solver.time = -math.ceil(-start / solver.dt) * solver.dt if start < 0.0 else start
+    solver.time = -math.ceil(-start / solver.dt - 1e-9) * solver.dt if start < 0.0 else start
     return Simulation(cfg, solver, walls, applied=[])
 
 

@@ -162,6 +162,21 @@ class Solver:
     def damping(self, value: float) -> None:
         self.model.options = replace(self.model.options, damping=value)
 
+    def fit_step(self, interval: float) -> None:
+        """Shorten the time step to ``interval / k`` [s], the longest that takes whole steps to ``interval``.
+
+        For outputs at exact multiples of ``interval`` [s]; before the first step only. A step that
+        fits already (to 1e-9 of a step) stays as it is.
+        """
+        check_range("interval", interval, 0.0, np.inf, closed=(False, False))
+        if self.step_count:
+            raise RuntimeError(
+                f"fit_step: the run is at step {self.step_count}; fit the step before the first"
+            )
+        k = math.ceil(interval / self.dt - 1e-9)
+        if abs(interval / self.dt - k) > 1e-9:
+            self.state.dt = interval / k
+
     # -- stepping ----------------------------------------------------------------------------------
     def step(self) -> None:
         """Advance particles and grid by one time step ``dt``."""
