@@ -245,6 +245,26 @@ def test_ranks_without_particles_take_part(tmp_path):
     assert e == pytest.approx(e1, rel=1e-12)
 
 
+def test_physical_groups_on_all_ranks_are_those_of_one(tmp_path):
+    """A body and walls named by gmsh tags: each rank's cells and nodes from DOLFINx's input numbers."""
+    from test_scenario import TAGGED, write_tagged_square
+
+    from dolfin_mpm.app import scenario
+
+    folder = comm.bcast(tmp_path, root=0)
+    if comm.rank == 0:
+        write_tagged_square(folder / "square.msh", n=8)
+        (folder / "s.toml").write_text(TAGGED)
+    comm.barrier()
+    sim = scenario.build(scenario.load(folder / "s.toml"), comm)
+    s = sim.solver
+    assert s.num_particles() == 4 * 64 and np.all(s.particles.x[:, 1] < 0.5)  # the 64 cells of "sand"
+    node_x = s.grid.node_x
+    for name, on in (("floor", np.isclose(node_x[:, 1], 0.0)), ("left", np.isclose(node_x[:, 0], 0.0))):
+        (bc,) = sim.walls[name]
+        assert np.array_equal(np.sort(bc.nodes), np.flatnonzero(on)), name  # owned and ghost nodes
+
+
 def test_run_with_progress_on_all_ranks(capsys):
     """The progress display counts particles on all ranks (a collective) and shows on rank 0."""
     msh = mesh.create_rectangle(comm, [np.zeros(2), np.ones(2)], [8, 8], mesh.CellType.triangle)

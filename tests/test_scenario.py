@@ -217,6 +217,112 @@ def test_mesh_files_gmsh_and_xdmf(tmp_path):
         assert sim.solver.num_particles() == 4 * cells
 
 
+def write_tagged_square(path: Path, n: int = 6) -> None:
+    """A unit square of 2 n^2 triangles in gmsh format: cells below y = 1/2 in group 1 ("sand"), above
+    in 2 ("air"); the bottom's lines in group 5 ("floor"), the left side's in 6 ("left")."""
+    i, j = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="ij")
+    pts = np.c_[i.ravel() / n, j.ravel() / n, np.zeros((n + 1) ** 2)]
+    at = lambda a, b: a * (n + 1) + b  # noqa: E731
+    a, b = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    a, b = a.ravel(), b.ravel()
+    tri = np.r_[
+        np.c_[at(a, b), at(a + 1, b), at(a + 1, b + 1)], np.c_[at(a, b), at(a + 1, b + 1), at(a, b + 1)]
+    ]
+    below = np.r_[b, b] < n // 2
+    k = np.arange(n)
+    lines = np.r_[np.c_[at(k, 0), at(k + 1, 0)], np.c_[at(0, k), at(0, k + 1)]]
+    line_tags, cell_tags = np.r_[np.full(n, 5), np.full(n, 6)], np.where(below, 1, 2)
+    groups = {"sand": [1, 2], "air": [2, 2], "floor": [5, 1], "left": [6, 1]}
+    meshio.write(
+        path,
+        meshio.Mesh(
+            pts, [("line", lines), ("triangle", tri)],
+            cell_data={"gmsh:physical": [line_tags, cell_tags], "gmsh:geometrical": [line_tags, cell_tags]},
+            field_data={k: np.array(v) for k, v in groups.items()},
+        ),
+        file_format="gmsh22",
+    )  # fmt: skip
+
+
+TAGGED = """[mesh]
+shape = "file"
+file = "square.msh"
+
+[materials.sand]
+model = "elastic"
+E = 1e5
+nu = 0.3
+rho = 1500.0
+
+[bodies.sand]
+material = "sand"
+region = { tag = 1 }
+
+[walls.floor]
+type = "fixed"
+region = { tag = 5 }
+
+[walls.left]
+type = "slip"
+region = { tag = 6 }
+normal = [1.0, 0.0]
+
+[time]
+end = 0.01
+"""
+
+
+def test_gmsh_physical_groups_name_bodies_and_walls(tmp_path):
+    write_tagged_square(tmp_path / "square.msh")
+    (tmp_path / "s.toml").write_text(TAGGED)
+    sim = scenario.build(scenario.load(tmp_path / "s.toml"))
+    s, comm = sim.solver, MPI.COMM_WORLD
+    x = s.particles.x
+    assert comm.allreduce(s.num_particles()) == 4 * 36 and np.all(x[:, 1] < 0.5)  # the 36 cells of "sand"
+    node_x = s.grid.node_x
+    for name, on in (("floor", np.isclose(node_x[:, 1], 0.0)), ("left", np.isclose(node_x[:, 0], 0.0))):
+        (bc,) = sim.walls[name]
+        assert np.array_equal(np.sort(bc.nodes), np.flatnonzero(on)), name
+    Runner(sim, tmp_path / "run", progress=False).run()  # and it runs
+    assert np.all(s.particles.x[:, 1] < 0.5)
+
+
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        (
+            "region = { tag = 5 }",
+            "bodies.sand.region: tag 5 names no physical group of cells of dimension 2 in",
+        ),
+        ("region = { tag = 0 }", "bodies.sand.region.tag: must be >= 1, got 0"),
+        ('region = { tag = "sand" }', 'bodies.sand.region.tag: must be an integer, got "sand"'),
+    ],
+)
+def test_a_tag_the_file_lacks_is_named_with_the_groups_it_has(tmp_path, edit, message):
+    write_tagged_square(tmp_path / "square.msh")
+    (tmp_path / "s.toml").write_text(TAGGED.replace("region = { tag = 1 }", edit))
+    with pytest.raises(scenario.ScenarioError) as info:
+        scenario.build(scenario.load(tmp_path / "s.toml"))
+    (error,) = info.value.errors
+    assert error.startswith(message), error
+    if "names no" in message:
+        assert (
+            "(it has cells of dimension 2: 1 (sand), 2 (air); lower-dimensional: 5 (floor), 6 (left))"
+            in error
+        )
+
+
+def test_a_tag_needs_a_mesh_file_and_a_sink_takes_none(tmp_path):
+    text = (DEMOS / "elastic_bar.toml").read_text()
+    (tmp_path / "s.toml").write_text(text + "\n[sinks.out]\nregion = { tag = 3 }\n")
+    with pytest.raises(scenario.ScenarioError) as info:
+        scenario.load(tmp_path / "s.toml", ["walls.clamp.region={tag=2}"])
+    assert sorted(info.value.errors) == [
+        "sinks.out.region: a tag is for bodies and walls (a sink acts where particles are): give a box",
+        'walls.clamp.region: a tag names a physical group of a mesh file (mesh.shape = "file")',
+    ]
+
+
 def _cli(*args, cwd=None):
     return subprocess.run(
         [sys.executable, "-m", "dolfin_mpm", *args], capture_output=True, text=True, cwd=cwd, timeout=300

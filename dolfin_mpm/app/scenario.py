@@ -35,6 +35,7 @@ from dolfin_mpm.core.seeding import geostatic_stress, reference_points, seed
 from dolfin_mpm.core.walls import RigidWall
 from dolfin_mpm.explicit.options import INTEGERS, QUADRATURE, SCHEMES, STRESS, VOLUMETRIC, Options
 from dolfin_mpm.explicit.solver import Solver
+from dolfin_mpm.io.groups import read_groups
 from dolfin_mpm.materials import DruckerPragerViscoplastic, LinearElastic
 from dolfin_mpm.parallel import partition
 from dolfin_mpm.params import Range, parameters
@@ -111,6 +112,8 @@ class _Checker:
 
     def __init__(self):
         self.errors: list[str] = []
+        #: Whether the mesh is read from a file (whose physical groups a region may name by tag).
+        self.mesh_file = False
 
     def fail(self, path: str, message: str) -> None:
         self.errors.append(f"{path}: {message}")
@@ -204,8 +207,11 @@ class _Checker:
             return [float(a) for a in v]
         return v
 
-    def region(self, t: dict, path: str, key: str, gdim: int, required=True):
-        """A region: ``{min, max}`` box, an array of boxes (their union) or an expression string."""
+    def region(self, t: dict, path: str, key: str, gdim: int, required=True, tag=True):
+        """A region: ``{min, max}`` box, an array of boxes (their union) or an expression string.
+
+        Where ``tag``, also ``{tag = k}``: the physical group k of the mesh file.
+        """
         where = f"{path}.{key}"
         if key not in t:
             if required:
@@ -214,6 +220,16 @@ class _Checker:
                 )
             return None
         v = t[key]
+        if isinstance(v, dict) and "tag" in v:
+            self.keys(v, where, ("tag",))
+            number = self.value(v, where, "tag", "integer", check=Range(1, INF, closed=(True, False)))
+            if not tag:
+                self.fail(
+                    where, "a tag is for bodies and walls (a sink acts where particles are): give a box"
+                )
+            elif not self.mesh_file:
+                self.fail(where, 'a tag names a physical group of a mesh file (mesh.shape = "file")')
+            return None if number is None or not tag or not self.mesh_file else {"tag": number}
         if isinstance(v, str):
             try:
                 Expression(v)
@@ -416,6 +432,7 @@ def validate(data: dict, base: Path = Path(".")) -> dict:
     memory = available_memory()
     memory = None if memory is None else memory * MPI.COMM_WORLD.size
     cfg["mesh"], gdim = _mesh(c, c.table(data, "mesh", ""), Path(base))
+    c.mesh_file = cfg["mesh"].get("shape") == "file"
     cfg["materials"] = {
         name: _material(c, t, f"materials.{name}") for name, t in c.named_tables(data, "materials").items()
     }
@@ -423,7 +440,7 @@ def validate(data: dict, base: Path = Path(".")) -> dict:
     cfg["sinks"] = {}
     for name, t in c.named_tables(data, "sinks", False).items():
         c.keys(t, f"sinks.{name}", ("region",))
-        cfg["sinks"][name] = {"region": c.region(t, f"sinks.{name}", "region", gdim)}
+        cfg["sinks"][name] = {"region": c.region(t, f"sinks.{name}", "region", gdim, tag=False)}
     cfg["solver"] = _solver(c, c.table(data, "solver", "", required=False) or {}, gdim, cfg["sinks"])
     cfg["bodies"] = {
         name: _body(c, t, f"bodies.{name}", gdim, cfg["materials"], cfg["solver"]["gravity"], memory)
@@ -788,6 +805,7 @@ class Simulation:
 
 
 def _make_region(spec: dict, tol: float) -> Region:
+    """The region of a box or expression spec (a tag's cells and nodes come from :func:`read_groups`)."""
     if "expression" in spec:
         return Region(expression=Expression(spec["expression"]))
     return Region(boxes=spec["boxes"], tol=tol)
@@ -890,11 +908,25 @@ def build(cfg: dict, comm=MPI.COMM_WORLD) -> Simulation:
         *(comm.allreduce(float(b), MPI.MAX) - comm.allreduce(float(a), MPI.MIN) for a, b in zip(lo, hi))
     )
 
-    # Every region once on the nodes: an expression that fails or is not a condition.
+    # Every region once on the nodes: an expression that fails or is not a condition; a tag
+    # that names no group of its kind in the file.
     nodes = np.ascontiguousarray(grid.node_x.T)
     errors = []
+    tagged = any("tag" in spec for _, spec in _regions(cfg))
+    groups = read_groups(comm, cfg["mesh"]["file"], grid) if tagged else None
     for path, spec in _regions(cfg):
-        _evaluate(errors, path, _make_region(spec, tol), nodes)
+        if "tag" not in spec:
+            _evaluate(errors, path, _make_region(spec, tol), nodes)
+        elif not _has_group(groups, spec["tag"], path.startswith("bodies."), comm):
+            kind = (
+                f"cells of dimension {grid.gdim}"
+                if path.startswith("bodies.")
+                else "lower-dimensional elements"
+            )
+            errors.append(
+                f"{path}: tag {spec['tag']} names no physical group of {kind} in {cfg['mesh']['file']} "
+                f"(it has {groups.describe()})"
+            )
     errors = _agree(comm, errors)
     if errors:
         raise ScenarioError(errors)
@@ -910,9 +942,11 @@ def build(cfg: dict, comm=MPI.COMM_WORLD) -> Simulation:
     particles = None
     for name, b in cfg["bodies"].items():
         k = names.index(b["material"])
-        where = _make_region(b["region"], tol) if b["region"] else None
+        tag = (b["region"] or {}).get("tag")
+        where = _make_region(b["region"], tol) if b["region"] and tag is None else None
+        cells = None if tag is None else groups.cell_tags[: grid.num_owned_cells] == tag
         try:
-            P = seed(grid, materials[k], ppc=b["ppc"], where=where, material_index=k)
+            P = seed(grid, materials[k], ppc=b["ppc"], where=where, material_index=k, cells=cells)
         except ValueError as e:
             errors.append(f"bodies.{name}.region: {e}")
             P = None
@@ -977,7 +1011,10 @@ def build(cfg: dict, comm=MPI.COMM_WORLD) -> Simulation:
                 except ValueError as e:
                     errors.append(str(e))
             continue
-        nodes = grid.nodes_where(_make_region(w["region"], tol))
+        if "tag" in w["region"]:
+            nodes = groups.node_tags[w["region"]["tag"]]
+        else:
+            nodes = grid.nodes_where(_make_region(w["region"], tol))
         if comm.allreduce(len(nodes), MPI.SUM) == 0:
             errors.append(f"walls.{name}.region: holds no grid nodes")
         if w["type"] == "fixed":
@@ -1038,6 +1075,13 @@ def build(cfg: dict, comm=MPI.COMM_WORLD) -> Simulation:
     # A negative start is whole steps before t = 0, so that t = 0 (an opening, say) is a step.
     solver.time = -math.ceil(-start / solver.dt - 1e-9) * solver.dt if start < 0.0 else start
     return Simulation(cfg, solver, walls, applied=[])
+
+
+def _has_group(groups, tag: int, of_cells: bool, comm) -> bool:
+    """Whether the file's physical group ``tag`` holds cells (``of_cells``) or lower-dimensional elements."""
+    if of_cells:
+        return comm.allreduce(bool(np.any(groups.cell_tags == tag)), MPI.LOR)
+    return tag in groups.node_tags
 
 
 def _averaging_errors(n: dict, particles, gdim: int, diagonal: float, memory, comm) -> list[str]:

@@ -29,6 +29,7 @@ __all__ = [
     "evaluate",
     "function_space",
     "geometry_dofmap",
+    "meshio_simplices",
     "quadrature_points",
     "quadrature_space",
     "read_mesh",
@@ -173,17 +174,8 @@ def read_mesh(comm, path, gdim: int):
 
         try:
             m = meshio.read(path)
-            blocks = [b.data for b in m.cells if b.type == meshio_name]
-            if blocks:
-                cells = np.concatenate(blocks).astype(np.int64)
-                if cells.min() < 0 or cells.max() >= len(m.points):
-                    raise ValueError(
-                        f"cells name points {cells.min()} to {cells.max()}, the file has {len(m.points)}"
-                    )
-                used = np.unique(cells)  # drop points only lower-dimensional cells use
-                renumber = np.full(len(m.points), -1, dtype=np.int64)
-                renumber[used] = np.arange(len(used))
-                cells, x = renumber[cells], np.ascontiguousarray(m.points[used, :gdim], dtype=np.float64)
+            if any(b.type == meshio_name for b in m.cells):
+                cells, x, _ = meshio_simplices(m, gdim)
         except Exception as e:  # meshio's readers fail in many ways on a file that is not a mesh
             error = f"{path} is not a mesh file meshio reads ({type(e).__name__}: {e})"
     error = comm.bcast(error, root=0)  # every rank raises, or none
@@ -192,6 +184,22 @@ def read_mesh(comm, path, gdim: int):
     if comm.bcast(len(cells) == 0, root=0):
         raise ValueError(f"{path}: no {meshio_name} cells for a mesh of dimension {gdim}")
     return create_mesh(comm, cells, x)
+
+
+def meshio_simplices(m, gdim: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The triangles (tetrahedra) of a meshio mesh ``m``, as :func:`read_mesh` makes its mesh of them.
+
+    Returns the cells (their blocks in order, ``(num_cells, gdim + 1)``), the points they use
+    (``(num_points, gdim)``, in the file's order) and each file point's number among those
+    (-1: a point only lower-dimensional cells use).
+    """
+    cells = np.concatenate([b.data for b in m.cells if b.type == _MESHIO_CELLS[gdim][0]]).astype(np.int64)
+    if cells.min() < 0 or cells.max() >= len(m.points):
+        raise ValueError(f"cells name points {cells.min()} to {cells.max()}, the file has {len(m.points)}")
+    used = np.unique(cells)
+    renumber = np.full(len(m.points), -1, dtype=np.int64)
+    renumber[used] = np.arange(len(used))
+    return renumber[cells], np.ascontiguousarray(m.points[used, :gdim], dtype=np.float64), renumber
 
 
 def create_mesh(comm, cells: np.ndarray, x: np.ndarray, destinations=None):

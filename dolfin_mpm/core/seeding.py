@@ -70,6 +70,7 @@ def seed(
     body=None,
     material_index: int = 0,
     velocity=None,
+    cells: np.ndarray | None = None,
 ) -> Particles:
     """Material points filling a body, ``ppc`` per cell, mass ``rho * volume``.
 
@@ -81,6 +82,8 @@ def seed(
         body: a separate DOLFINx mesh of the body to fill; default: the grid's own mesh.
         material_index: index of ``material`` in the solver's material list.
         velocity: initial velocity [m/s], ``shape=(gdim,)``.
+        cells: seed only these of the body mesh's owned cells, a mask ``shape=(num_owned_cells,)``
+            (a physical group of a mesh file, say); with ``where``, both must hold.
 
     Raises:
         ValueError: bad ``ppc``, or particles outside the grid.
@@ -102,8 +105,14 @@ def seed(
     else:
         cell_volume = np.abs(np.linalg.det(J)) / 6.0
     volume = np.repeat(cell_volume / ppc, ppc)
+    keep = np.ones(len(x), dtype=bool)
+    if cells is not None:
+        if np.shape(cells) != (num_owned,):
+            raise ValueError(f"cells: a mask of the {num_owned} owned cells, got shape {np.shape(cells)}")
+        keep = np.repeat(np.asarray(cells, dtype=bool), len(ref))
     if where is not None:
-        keep = np.asarray(where(x.T), dtype=bool)
+        keep &= np.asarray(where(x.T), dtype=bool)
+    if cells is not None or where is not None:
         x, volume = x[keep], volume[keep]
 
     cells, _ = locate(grid, x, np.full(x.shape[0], -1, dtype=np.int32))
