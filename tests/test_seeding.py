@@ -43,3 +43,16 @@ def test_seed_from_separate_body_mesh():
         dm.seed(grid, mat, body=outside)
     with pytest.raises(ValueError, match="ppc must be an integer"):
         dm.seed(grid, mat, ppc=0)
+
+
+def test_seeding_a_mask_of_cells_with_and_without_where():
+    grid = dm.Grid(rectangle((0, 0), (1, 1), (4, 4)))
+    mat = dm.LinearElastic(E=1e4, nu=0.3, rho=1000.0)
+    cells = np.zeros(grid.num_owned_cells, dtype=bool)
+    cells[::3] = True
+    P = dm.seed(grid, mat, ppc=4, cells=cells)
+    assert len(P) == 4 * cells.sum() and np.all(cells[P.cell])  # in those cells and all of them
+    Q = dm.seed(grid, mat, ppc=4, cells=cells, where=lambda x: x[0] < 0.5)
+    assert 0 < len(Q) < len(P) and np.all(Q.x[:, 0] < 0.5) and np.all(cells[Q.cell])
+    with pytest.raises(ValueError, match="cells: a mask of the 32 owned cells, got shape"):
+        dm.seed(grid, mat, ppc=4, cells=cells[1:])
