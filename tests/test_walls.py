@@ -521,3 +521,34 @@ def test_two_facets_carry_the_weight_over_each_wherever_their_edge_falls(x_e):
     spacing = 0.05 / 4  # a wall of nodes would end at 0.55 for x_e = 0.53, 0.02 off
     assert abs(carried[0] / weight - x_e) < spacing
     assert abs(carried[1] / weight - (1 - x_e)) < spacing
+
+
+@pytest.mark.parametrize("gdim", [2, 3])
+def test_each_walls_mass_at_the_nodes_is_that_of_its_particles(gdim):
+    """The one pass over the particles for all walls of a line: each wall's nodal sums are those
+    of the particles within the limit in front of it and over it, term for term."""
+    from dolfinx import mesh as dmesh
+    from mpi4py import MPI
+
+    from dolfin_mpm.core.locate import basis_at, locate
+    from dolfin_mpm.core.walls import _wall_shares
+
+    if gdim == 2:  # on one rank each: every point is local
+        grid = dm.Grid(dmesh.create_rectangle(MPI.COMM_SELF, [np.zeros(2), np.ones(2)], [7, 6]))
+        walls = [dm.RigidWall([(0.1, 0.3), (0.55, 0.3)])]
+        walls.append(dm.RigidWall([(0.55, 0.3), (0.9, 0.3)], velocity=(0.2, 0.0)))
+    else:
+        grid = dm.Grid(dmesh.create_unit_cube(MPI.COMM_SELF, 4, 4, 4))
+        square = [(0.1, 0.1, 0.3), (0.1, 0.6, 0.3), (0.6, 0.6, 0.3), (0.6, 0.1, 0.3)]  # seen from above
+        walls = [dm.RigidWall(square), dm.RigidWall([(0.6, 0.1, 0.3), (0.6, 0.6, 0.3), (0.9, 0.3, 0.3)])]
+    rng = np.random.default_rng(7)
+    x = np.zeros((500, 3))
+    x[:, :gdim] = rng.random((500, gdim))
+    m = rng.random(500)
+    basis = basis_at(grid, *locate(grid, x, np.full(500, -1, np.int32)))
+    shares = _wall_shares(x, m, basis, walls, 0.2, 0.3)
+    for w, share in zip(walls, shares):
+        mine = np.flatnonzero((w.distance(x, 0.3) < 0.2) & w.over(x, 0.3))
+        want = np.zeros(grid.num_nodes)
+        np.add.at(want, basis.dofs[:, mine].T.ravel(), (basis.N[:, mine] * m[mine]).T.ravel())
+        assert 10 < len(mine) < 400 and np.array_equal(share, want)

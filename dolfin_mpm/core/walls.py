@@ -31,7 +31,6 @@ from mpi4py import MPI
 from dolfin_mpm import native
 from dolfin_mpm.core.grid import Grid
 from dolfin_mpm.core.locate import Basis
-from dolfin_mpm.core.transfer import scatter
 from dolfin_mpm.params import check_range
 
 __all__ = ["Contact", "RigidWall", "contacts", "stop_at_walls"]
@@ -48,6 +47,7 @@ _FLAT = 1e-9
 _PARALLEL = 1e-12
 
 _REAL = native.array(np.float64)
+_NONE = np.zeros(1)  # what a kernel is given for an array it does not read
 _kernels = native.kernels(
     Path(__file__).with_suffix(".c"),
     {
@@ -57,6 +57,11 @@ _kernels = native.kernels(
         ),
         "near_lines": (
             ctypes.c_int64, ctypes.c_int32, _REAL, ctypes.c_int32, _REAL, _REAL, _REAL, native.array(np.int8),
+        ),
+        "wall_shares": (
+            ctypes.c_int64, ctypes.c_int32, _REAL, _REAL, native.array(np.int32), _REAL, ctypes.c_int64,
+            ctypes.c_int32, _REAL, _REAL, ctypes.c_double, _REAL, _REAL, _REAL, native.array(np.int32), _REAL,
+            _REAL, _REAL,
         ),
     },
 )  # fmt: skip
@@ -275,7 +280,7 @@ def contacts(
         if not isinstance(bc, RigidWall):
             out.append(bc)
             continue
-        key = (*bc.normal, *bc.velocity, float(bc.normal @ bc.start(time)))  # the line, as it moves
+        key = (*bc.normal.tolist(), *bc.velocity.tolist(), float(bc.normal @ bc.start(time)))  # as it moves
         k = next((k for k, (other, _) in lines.items() if _same_line(key, other, tol)), None)
         if k is None:
             lines[len(out)] = (key, [bc])
@@ -287,19 +292,46 @@ def contacts(
     for k, (_, line) in lines.items():
         w0 = line[0]
         behind = np.flatnonzero((w0.distance(grid.node_x, time) <= tol) & (mass > 0.0))
-        # Only particles within a cell of the line reach its nodes: found for the line once (with
-        # room for its walls' offsets, at most tol apart), then tested for each wall.
-        candidates = _near_lines(x, [w0], [grid.diameter + 2.0 * tol], time)
-        members = []
-        for w in line:
-            near = candidates[w.distance(x[candidates], time) < grid.diameter]
-            near = near[w.over(x[near], time)]
-            share = grid.assemble(grid.scratch, scatter(basis, m[near], near))  # the wall's mass at nodes
-            members.append((w, share[behind] / mass[behind]))
+        # each wall's mass at the nodes: of the particles within a cell of its line, over it
+        shares = _wall_shares(x, m, basis, line, grid.diameter, time)
+        members = [
+            (w, grid.assemble(grid.scratch, share)[behind] / mass[behind]) for w, share in zip(line, shares)
+        ]
         touched = np.logical_or.reduce([alpha > 0.0 for _, alpha in members])
         nodes = behind[touched]
         members = [(w, alpha[touched]) for w, alpha in members]
         out[k] = Contact(nodes, w0.normal, members, mass[nodes], grid.num_owned_nodes)
+    return out
+
+
+def _wall_shares(
+    x: np.ndarray, m: np.ndarray, basis: Basis, walls: list, limit: float, time: float
+) -> np.ndarray:
+    """Local nodal sums ``sum_p N_a(x_p) m_p`` of each wall's particles, ``shape=(len(walls), num_nodes)``.
+
+    A wall's particles: less than ``limit`` [m] in front of its line (plane) and over it, at
+    ``time`` [s]; one pass over the particles for all of them.
+    """
+    g, n = walls[0].gdim, len(m)
+    starts = np.ascontiguousarray([w.start(time) for w in walls], dtype=np.float64)
+    normals = np.ascontiguousarray([w.normal for w in walls], dtype=np.float64)
+    if g == 2:
+        tangents = np.ascontiguousarray([w.tangent for w in walls], dtype=np.float64)
+        lengths = np.array([w.length for w in walls], dtype=np.float64)
+        shifts = inward = offsets = _NONE
+        begin = np.zeros(len(walls) + 1, dtype=np.int32)
+    else:
+        tangents = lengths = _NONE
+        shifts = np.ascontiguousarray([w.velocity * time for w in walls], dtype=np.float64)
+        inward = np.ascontiguousarray(np.concatenate([w._inward for w in walls]), dtype=np.float64)
+        offsets = np.ascontiguousarray(np.concatenate([w._offset for w in walls]), dtype=np.float64)
+        begin = np.cumsum([0, *(len(w._offset) for w in walls)], dtype=np.int32)
+    out = np.zeros((len(walls), basis.num_nodes))
+    x, m = np.ascontiguousarray(x, dtype=np.float64).reshape(n, 3), np.ascontiguousarray(m, dtype=np.float64)
+    _kernels().wall_shares(
+        n, g, x, m, basis.dofs, basis.N, basis.num_nodes, len(walls), starts, normals, limit, tangents,
+        lengths, shifts, begin, inward, offsets, out,
+    )  # fmt: skip
     return out
 
 
@@ -322,7 +354,7 @@ def _same_line(a: tuple, b: tuple, tol: float) -> bool:
 
     Normals and velocities to round-off (two facets of one inclined plane differ by ~1e-16).
     """
-    return np.allclose(a[:-1], b[:-1], rtol=0.0, atol=_PARALLEL) and abs(a[-1] - b[-1]) <= tol
+    return all(abs(u - v) <= _PARALLEL for u, v in zip(a[:-1], b[:-1])) and abs(a[-1] - b[-1]) <= tol
 
 
 def stop_at_walls(walls: list, x: np.ndarray, dx: np.ndarray, v: np.ndarray, time: float, dt: float) -> int:
