@@ -32,7 +32,10 @@ from dolfin_mpm.post.figures import field_unit, field_values, plot_curves, plot_
 __all__ = ["HISTORY", "FolderLock", "Interrupted", "RunError", "Runner"]
 
 #: The columns of ``history.csv``; ``imbalance`` is the largest rank's particle count over the mean.
-HISTORY = ("t", "step", "kinetic", "strain", "potential", "total", "discharged", "particles", "imbalance")
+HISTORY = (
+    "t", "step", "kinetic", "strain", "potential", "total", "dissipated", "sunk", "discharged", "particles",
+    "imbalance",
+)  # fmt: skip
 CHECKPOINT = "checkpoint.h5"
 
 
@@ -118,7 +121,11 @@ class Runner:
         if self.history["t"] and self.history["t"][-1] == s.time:
             return
         e = s.energies()
-        row = (s.time, s.step_count, e["kinetic"], e["strain"], e["potential"], e["total"])
+        row = (
+            s.time,
+            s.step_count,
+            *(e[k] for k in ("kinetic", "strain", "potential", "total", "dissipated", "sunk")),
+        )
         row += (self.sim.discharged_mass(), s.num_particles(), s.imbalance())
         for k, v in zip(HISTORY, row):
             self.history[k].append(v)

@@ -119,6 +119,8 @@ class Sink:
         mass: total absorbed mass [kg] (per metre in 2D).
         momentum: total absorbed momentum [kg m/s], ``shape=(gdim,)``.
         count: number of absorbed particles.
+        energy: the kinetic, strain and potential energy [J] the absorbed particles carried
+            (per metre in 2D), as the caller of :meth:`absorb` counts it.
         history: ``(time [s], cumulative mass [kg])`` after each step that absorbed something.
 
     """
@@ -128,10 +130,11 @@ class Sink:
     mass: float = 0.0
     momentum: np.ndarray = field(default_factory=lambda: np.zeros(0))
     count: int = 0
+    energy: float = 0.0
     history: list[tuple[float, float]] = field(default_factory=list)
 
-    def absorb(self, particles: Particles, mask: np.ndarray, time: float) -> None:
-        """Record and remove the particles where ``mask`` is true."""
+    def absorb(self, particles: Particles, mask: np.ndarray, time: float, energy: float = 0.0) -> None:
+        """Record and remove the particles where ``mask`` is true, carrying ``energy`` [J]."""
         if self.momentum.size == 0:
             self.momentum = np.zeros(particles.gdim)
         if not np.any(mask):
@@ -140,5 +143,6 @@ class Sink:
         self.mass += float(m.sum())
         self.momentum += (m[:, None] * particles.v[mask]).sum(axis=0)
         self.count += int(mask.sum())
+        self.energy += energy
         self.history.append((time, self.mass))
         particles.keep(~mask)

@@ -20,6 +20,7 @@ from dolfin_mpm.core.boundary import BoundaryCondition
 from dolfin_mpm.core.grid import Grid
 from dolfin_mpm.core.particles import Particles, Sink
 from dolfin_mpm.core.walls import RigidWall
+from dolfin_mpm.explicit.energy import mechanical
 from dolfin_mpm.explicit.options import Options
 from dolfin_mpm.explicit.progress import Progress
 from dolfin_mpm.explicit.state import State
@@ -272,18 +273,18 @@ class Solver:
         return self.comm.allreduce((P.mass[:, None] * P.v).sum(axis=0), MPI.SUM)
 
     def energies(self) -> dict[str, float]:
-        """Kinetic, strain and gravitational potential energy [J] (per metre in 2D), and total."""
-        P, g = self.particles, self.grid.gdim
-        kinetic = 0.5 * float(np.sum(P.mass[:, None] * P.v**2))
-        strain = 0.0
-        for k, material in enumerate(self.materials):
-            idx = P.material == k
-            strain += float(np.sum(P.volume[idx] * material.strain_energy_density(P.sigma[idx])))
-        potential = -float(np.sum(P.mass * (P.x[:, :g] @ self.gravity)))
-        e = {
-            name: self.comm.allreduce(val, MPI.SUM)
-            for name, val in (("kinetic", kinetic), ("strain", strain), ("potential", potential))
-        }
+        """The energy balance [J] (per metre in 2D), over the ranks.
+
+        ``kinetic``, ``strain`` and ``potential`` (gravity's, from y = 0 or z = 0) of the
+        particles, and ``total`` their sum; since the start, ``dissipated`` (the plastic work of
+        the stress updates) and ``sunk`` (the energy the particles the
+        sinks absorbed carried). What the total lost beyond these two went to the walls, the
+        damping and the transfers.
+        """
+        e = mechanical(self.particles, self.materials, self.gravity)
+        e["dissipated"] = self.state.dissipated
+        e["sunk"] = sum(sink.energy for sink in self.sinks.values())
+        e = dict(zip(e, self.comm.allreduce(np.array(list(e.values())), MPI.SUM).tolist()))
         e["total"] = e["kinetic"] + e["strain"] + e["potential"]
         return e
 

@@ -34,6 +34,8 @@ class State:
             updates, latest first, each ``shape=(owned nodes * gdim,)`` (the fixed-point loop
             extrapolates them).
         fixed_point: the loop's counters, :data:`FIXED_POINT_STATISTICS`.
+        dissipated: the (visco)plastic work [J] of the stress updates on this rank since the
+            start (:func:`dolfin_mpm.explicit.energy.plastic_work`).
         migrated: particles moved between ranks since the start (a diagnostic, not stored).
         wall_stops: particle moves cut short at a rigid wall since the start (a diagnostic,
             not stored).
@@ -50,6 +52,7 @@ class State:
     average: object | None = None
     R_changes: list[np.ndarray] = field(default_factory=list)
     fixed_point: dict[str, int] = field(default_factory=lambda: dict.fromkeys(FIXED_POINT_STATISTICS, 0))
+    dissipated: float = 0.0
     migrated: int = 0
     wall_stops: int = 0
     reactions: dict = field(default_factory=dict)
@@ -65,7 +68,7 @@ class State:
         sinks = {
             name: {
                 "mass": np.array(k.mass), "momentum": np.asarray(k.momentum), "count": np.array(k.count),
-                "history": np.array(k.history, dtype=np.float64).reshape(-1, 2),
+                "energy": np.array(k.energy), "history": np.array(k.history, dtype=np.float64).reshape(-1, 2),
             }
             for name, k in self.sinks.items()
         }  # fmt: skip
@@ -74,6 +77,7 @@ class State:
             "sinks": sinks,
             "nonlocal": self.average.state() if self.average is not None else {},
             "R_changes": np.array(self.R_changes, dtype=np.float64).reshape(len(self.R_changes), owned),
+            "dissipated": np.array(self.dissipated),
         }
 
     def fits(self, tree: dict) -> bool:
@@ -97,10 +101,12 @@ class State:
         for name, rec in tree["sinks"].items():
             sink = self.sinks[name]
             sink.mass, sink.count = float(rec["mass"]), int(rec["count"])
+            sink.energy = float(rec.get("energy", 0.0))  # not in the checkpoints of earlier versions
             sink.momentum = np.array(rec["momentum"], dtype=np.float64)
             sink.history = [(float(t), float(m)) for t, m in rec["history"]]
         if self.average is not None:
             self.average.restore(tree["nonlocal"])
         self.R_changes = list(np.array(tree["R_changes"], dtype=np.float64))
+        self.dissipated = float(tree.get("dissipated", 0.0))
         self.time, self.step, self.dt = float(scalars["time"]), int(scalars["step"]), float(scalars["dt"])
         self.fixed_point.update(zip(FIXED_POINT_STATISTICS, (int(v) for v in scalars["fixed_point"])))

@@ -45,6 +45,7 @@ from dolfin_mpm.core.transfer import (
 from dolfin_mpm.core.volumetric import nodal_volumetric
 from dolfin_mpm.core.walls import Contact, contacts, stop_at_walls
 from dolfin_mpm.explicit.anderson import Anderson
+from dolfin_mpm.explicit.energy import mechanical, plastic_work
 from dolfin_mpm.explicit.options import Options
 from dolfin_mpm.explicit.state import State
 from dolfin_mpm.explicit.timer import Timer
@@ -325,7 +326,7 @@ def advance(model: Model, state: State, timer: Timer) -> None:
     timer.start()
     for sink in state.sinks.values():
         if sink.region is not None:
-            sink.absorb(P, np.asarray(sink.region(P.x.T), dtype=bool), state.time)
+            _absorb(model, sink, P, np.asarray(sink.region(P.x.T), dtype=bool), state.time)
     timer.lap("sinks")
     cells, N = locate(grid, P.x, P.cell)
     timer.lap("locate")
@@ -335,7 +336,7 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         if sent:
             cells, N = locate(grid, P.x, P.cell)
         timer.lap("migrate")
-    cells, N = _leave_grid(options, state, cells, N)
+    cells, N = _leave_grid(model, state, cells, N)
     P.cell = cells
     basis = basis_at(grid, cells, N)
     timer.lap("basis")
@@ -459,6 +460,7 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         if law.iterative:
             P.state[CORRECTION] = dq_next if overstress else de
     state.reactions = reactions
+    state.dissipated += plastic_work(constitutive.groups, trials, sigma, volume)
     P.sigma, P.volume = sigma, volume
     constitutive.record(P, de, de_bar, dt, applied)
     if free_volume is not None:
@@ -487,20 +489,26 @@ def _after(time: float, dt: float) -> float:
     return k * dt if abs(t - k * dt) <= 1e-9 * dt else t
 
 
-def _leave_grid(options: Options, state: State, cells: np.ndarray, N: np.ndarray):
+def _leave_grid(model: Model, state: State, cells: np.ndarray, N: np.ndarray):
     """Particles outside the grid: an error, or absorbed by the ``on_exit`` sink."""
     lost = cells < 0
     if not np.any(lost):
         return cells, N
-    P = state.particles
+    P, options = state.particles, model.options
     if options.on_exit == "error":
         i = np.flatnonzero(lost)[0]
         raise SimulationError(
             f"step {state.step}, t = {state.time:.6g} s: particle {P.id[i]} left the "
             f"grid at x = {P.x[i]} ({lost.sum()} particles outside)"
         )
-    state.sinks[options.on_exit].absorb(P, lost, state.time)
+    _absorb(model, state.sinks[options.on_exit], P, lost, state.time)
     return cells[~lost], N[:, ~lost]
+
+
+def _absorb(model: Model, sink, P: Particles, mask: np.ndarray, time: float) -> None:
+    """``sink`` absorbs the particles where ``mask`` holds, with the energy they carry."""
+    energy = sum(mechanical(P, model.materials, model.gravity, mask).values()) if mask.any() else 0.0
+    sink.absorb(P, mask, time, energy)
 
 
 def _predicted_change(R_changes: list[np.ndarray], order: int) -> np.ndarray:

@@ -74,6 +74,16 @@ class Material(ABC):
     def strain_energy_density(self, sigma: np.ndarray) -> np.ndarray:
         """Recoverable elastic energy per unit volume [J/m^3] at stress ``sigma``, ``shape=(n,)``."""
 
+    def plastic_work_density(self, trial: Trial, sigma: np.ndarray) -> np.ndarray:
+        """The step's (visco)plastic work per unit volume [J/m^3], ``shape=(n,)``.
+
+        ``sigma : de_p`` with the plastic strain increment ``de_p = C^-1 (sigma_trial - sigma)``
+        of the return (backward Euler), ``sigma`` [Pa] ``shape=(n, 3, 3)`` the stress the step
+        ends with; read after :meth:`stress`. A material that does not give it has NaN: the
+        energy balance does not know its dissipation.
+        """
+        return np.full(len(trial.q), np.nan)
+
     def state_fields(self) -> dict[str, tuple[int, ...]]:
         """Per-particle state arrays this material needs: name -> shape after the particle axis."""
         return {}

@@ -109,6 +109,17 @@ class LinearElastic(Material):
         D = self.K * np.outer(MANDEL_IDENTITY, MANDEL_IDENTITY) + 2.0 * self.G * MANDEL_DEVIATORIC
         return np.broadcast_to(D, (len(trial.q), 6, 6)).copy()
 
+    def plastic_work_density(self, trial, sigma):
+        """``sigma : C^-1 (sigma_trial - sigma) = p (p_trial - p) / K + s : (s_trial - s) / 2G`` [J/m^3].
+
+        Zero for this material itself, whose stress is its trial (and is built in ``trial.s``).
+        """
+        if not self.plastic:
+            return np.zeros(len(trial.q))
+        p, s = deviator(sigma)
+        s = component_first(s)
+        return p * (trial.p - p) / self.K + (s * (trial.s - s)).sum(axis=(0, 1)) / (2.0 * self.G)
+
     def strain_energy_density(self, sigma):
         p, s = deviator(sigma)
         s = component_first(s)

@@ -76,21 +76,29 @@ def plot_particles(
 def plot_curves(folder: Path, history: dict[str, np.ndarray], mass_unit: str, energy_unit: str) -> list[Path]:
     """Curves against time in ``folder``; returns the files written.
 
-    ``energy.png``: kinetic, strain, potential change and total change, the last the work the
-    sand dissipated (plastic flow, wall friction, damping, the transfers) and the energy that
-    went into sinks, not yet told apart; ``discharge.png`` (when anything was discharged): the
-    mass in the sinks.
+    ``energy.png``: the balance since the first row, ``kinetic + strain + (potential - initial)
+    + dissipated + sunk + other = initial kinetic + strain``: the particles' energies, the strain
+    energy the stress updates released (plastic dissipation), the energy carried into sinks and
+    the rest, ``other``: the work of the walls and the damping and what the transfers lose.
+    ``discharge.png`` (when anything was discharged): the mass in the sinks.
     """
     t = history["t"]
     written = [folder / "energy.png"]
+    d, sunk = (history[k] - history[k][0] for k in ("dissipated", "sunk"))
+    other = -(history["total"] - history["total"][0]) - d - sunk
     with figure(written[0], figsize=(6.5, 4)) as ax:
         ax.plot(t, history["kinetic"], label="kinetic")
         ax.plot(t, history["strain"], label="strain")
         ax.plot(t, history["potential"] - history["potential"][0], label="potential - initial")
-        ax.plot(
-            t, history["total"] - history["total"][0], "k--", label="total - initial: dissipated and sunk"
+        ax.plot(t, d, label="dissipated: plastic work")
+        if np.any(sunk != 0.0):
+            ax.plot(t, sunk, label="sunk (carried into sinks)")
+        ax.plot(t, other, "k--", label="other: walls, damping, transfers")
+        ax.set(
+            xlabel="t [s]",
+            ylabel=f"energy [{energy_unit}]",
+            title="energy balance: the curves add up to the initial kinetic + strain",
         )
-        ax.set(xlabel="t [s]", ylabel=f"energy [{energy_unit}]")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
     if np.any(history["discharged"] > 0.0):
