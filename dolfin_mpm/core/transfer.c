@@ -29,6 +29,16 @@ INLINE void cell_of(int64_t n, int32_t nn, const int32_t *restrict dofs, int64_t
     d[a] = dofs[a * n + p];
 }
 
+/* Component i of particle p's internal force at its node a: sum_j sigma_ij V dN_aj. */
+INLINE double force_term(int64_t n, int32_t gdim, const double *restrict sigma, const double *restrict volume,
+                         const double *restrict dN, int64_t p, int32_t a, int32_t i)
+{
+  double f = 0.0;
+  for (int32_t j = 0; j < gdim; ++j)
+    f += sigma[(3 * i + j) * n + p] * volume[p] * dN[(a * gdim + j) * n + p];
+  return f;
+}
+
 #define MAX_NODES 4 /* a tetrahedron */
 #define MAX_K 9
 
@@ -81,12 +91,7 @@ INLINE void internal_force_of(int64_t n, int32_t gdim, const int32_t *restrict d
     for (; p < n && same_cell(n, nn, dofs, p, d); ++p)
       for (int32_t a = 0; a < nn; ++a)
         for (int32_t i = 0; i < gdim; ++i)
-        {
-          double f = 0.0;
-          for (int32_t j = 0; j < gdim; ++j)
-            f += sigma[(3 * i + j) * n + p] * volume[p] * dN[(a * gdim + j) * n + p];
-          o[a][i] += f;
-        }
+          o[a][i] += force_term(n, gdim, sigma, volume, dN, p, a, i);
     for (int32_t a = 0; a < nn; ++a)
       for (int32_t i = 0; i < gdim; ++i)
         out[d[a] * gdim + i] = o[a][i];
@@ -204,12 +209,7 @@ INLINE void p2g_of(int64_t n, int32_t gdim, const int32_t *restrict dofs, const 
         for (int32_t c = 0; c < gdim; ++c)
           mv[a][c] += N_ap * (m[p] * v_p[p * gdim + c]);
         for (int32_t i = 0; i < gdim; ++i)
-        {
-          double f = 0.0;
-          for (int32_t j = 0; j < gdim; ++j)
-            f += sigma[(3 * i + j) * n + p] * volume[p] * dN[(a * gdim + j) * n + p];
-          fs[a][i] += f;
-        }
+          fs[a][i] += force_term(n, gdim, sigma, volume, dN, p, a, i);
       }
     for (int32_t a = 0; a < nn; ++a)
     {
