@@ -277,9 +277,8 @@ class Solver:
 
         ``kinetic``, ``strain`` and ``potential`` (gravity's, from y = 0 or z = 0) of the
         particles, and ``total`` their sum; since the start, ``dissipated`` (the plastic work of
-        the stress updates) and ``sunk`` (the energy the particles the
-        sinks absorbed carried). What the total lost beyond these two went to the walls, the
-        damping and the transfers.
+        the stress updates) and ``sunk`` (the energy of what the sinks absorbed). What the total
+        lost beyond these two went to the walls, the damping and the transfers.
         """
         e = mechanical(self.particles, self.materials, self.gravity)
         e["dissipated"] = self.state.dissipated
