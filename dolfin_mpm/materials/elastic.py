@@ -110,15 +110,8 @@ class LinearElastic(Material):
         return np.broadcast_to(D, (len(trial.q), 6, 6)).copy()
 
     def plastic_work_density(self, trial, sigma):
-        """``sigma : C^-1 (sigma_trial - sigma) = p (p_trial - p) / K + s : (s_trial - s) / 2G`` [J/m^3].
-
-        Zero for this material itself, whose stress is its trial (and is built in ``trial.s``).
-        """
-        if not self.plastic:
-            return np.zeros(len(trial.q))
-        p, s = deviator(sigma)
-        s = component_first(s)
-        return p * (trial.p - p) / self.K + (s * (trial.s - s)).sum(axis=(0, 1)) / (2.0 * self.G)
+        """None: the stress is the trial's (zeros, ``shape=(n,)``)."""
+        return np.zeros(len(trial.q))
 
     def strain_energy_density(self, sigma):
         p, s = deviator(sigma)

@@ -32,3 +32,22 @@ void radial_stress(int64_t n, const double *restrict s, const double *restrict q
     }
   }
 }
+
+/* The plastic work density of the return, sigma : C^-1 (sigma_trial - sigma) [J/m^3]:
+ * w = p (p_trial - p) / K + s : (s_trial - s) / 2G with p = -tr(sigma) / 3, s = sigma + p I;
+ * sigma and s_trial component-first (9, n). */
+void plastic_work(int64_t n, const double *restrict sigma, const double *restrict p_trial,
+                  const double *restrict s_trial, double K, double G, double *restrict w)
+{
+  for (int64_t k = 0; k < n; ++k)
+  {
+    const double p = -(sigma[k] + sigma[4 * n + k] + sigma[8 * n + k]) / 3.0;
+    double sum = 0.0;
+    for (int ab = 0; ab < 9; ++ab)
+    {
+      const double s = ab % 4 == 0 ? sigma[ab * n + k] + p : sigma[ab * n + k];
+      sum += s * (s_trial[ab * n + k] - s);
+    }
+    w[k] = p * (p_trial[k] - p) / K + sum / (2.0 * G);
+  }
+}

@@ -25,12 +25,21 @@ import numpy as np
 from dolfin_mpm import native
 from dolfin_mpm.materials.base import Trial
 from dolfin_mpm.materials.elastic import LinearElastic
-from dolfin_mpm.materials.tensor import MANDEL_DEVIATORIC, MANDEL_IDENTITY, particle_first, to_mandel
+from dolfin_mpm.materials.tensor import (
+    MANDEL_DEVIATORIC,
+    MANDEL_IDENTITY,
+    component_first,
+    particle_first,
+    to_mandel,
+)
 
 __all__ = ["RadialReturn", "applied_increment"]
 
 _REAL = native.array(np.float64)
-_SIGNATURES = {"radial_stress": (ctypes.c_int64, *[_REAL] * 5)}
+_SIGNATURES = {
+    "radial_stress": (ctypes.c_int64, *[_REAL] * 5),
+    "plastic_work": (ctypes.c_int64, _REAL, _REAL, _REAL, ctypes.c_double, ctypes.c_double, _REAL),
+}
 _kernels = native.kernels(Path(__file__).with_suffix(".c"), _SIGNATURES)
 
 
@@ -62,6 +71,16 @@ class RadialReturn(LinearElastic):
         """
         q = np.maximum(trial.q - 2.0 * self.G * applied_increment(de, de_nonlocal), 0.0)
         return self.radial_stress(trial, q, trial.p)
+
+    def plastic_work_density(self, trial: Trial, sigma: np.ndarray) -> np.ndarray:
+        """``sigma : C^-1 (sigma_trial - sigma) = p (p_trial - p) / K + s : (s_trial - s) / 2G`` [J/m^3].
+
+        ``sigma`` [Pa] ``shape=(n, 3, 3)``, the stress of :meth:`stress`; ``shape=(n,)``.
+        """
+        w = np.empty(len(trial.q))
+        sigma = component_first(np.asarray(sigma, dtype=np.float64))
+        _kernels().plastic_work(len(w), sigma, trial.p, trial.s, self.K, self.G, w)
+        return w
 
     @staticmethod
     def radial_stress(trial: Trial, q: np.ndarray, p: np.ndarray) -> np.ndarray:
