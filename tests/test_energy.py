@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 from conftest import rectangle
+from test_solver import falling_into_a_sink
 
 import dolfin_mpm as dm
 
@@ -33,11 +34,7 @@ def test_a_perfectly_plastic_point_in_pure_shear_does_the_plastic_work_tau_y_gam
 def test_an_elastic_block_falling_into_a_sink_balances_its_energy():
     """Nothing dissipates in an elastic fall: the sink carries what the block loses, to the
     time-stepping error."""
-    grid = dm.Grid(rectangle((0, 0), (1, 1), (5, 5)))
-    mat = dm.LinearElastic(E=1e3, nu=0.3, rho=1.0)
-    P = dm.seed(grid, mat, ppc=4, where=lambda x: x[1] > 0.5)
-    sink = dm.Sink("catch", region=lambda x: x[1] < 0.4)
-    solver = dm.Solver(grid, P, mat, gravity=(0, -10.0), dt=1e-3, sinks=[sink])
+    solver, sink = falling_into_a_sink()
     e0 = solver.energies()
     assert e0["dissipated"] == e0["sunk"] == 0.0
     solver.run(0.3, progress=False)

@@ -92,12 +92,17 @@ def test_particles_leaving_the_grid():
     assert out.momentum[1] == pytest.approx(-m0, rel=1e-12)
 
 
-def test_region_sink_records_history():
+def falling_into_a_sink() -> tuple[dm.Solver, dm.Sink]:
+    """An elastic block in the upper half of a unit square, falling into a sink below y = 0.4."""
     grid = dm.Grid(rectangle((0, 0), (1, 1), (5, 5)))
     mat = dm.LinearElastic(E=1e3, nu=0.3, rho=1.0)
     P = dm.seed(grid, mat, ppc=4, where=lambda x: x[1] > 0.5)
     sink = dm.Sink("catch", region=lambda x: x[1] < 0.4)
-    solver = dm.Solver(grid, P, mat, gravity=(0, -10.0), dt=1e-3, sinks=[sink])
+    return dm.Solver(grid, P, mat, gravity=(0, -10.0), dt=1e-3, sinks=[sink]), sink
+
+
+def test_region_sink_records_history():
+    solver, sink = falling_into_a_sink()
     m0 = solver.total_mass()
     solver.run(0.3, progress=False)
     assert 0 < sink.mass < m0
