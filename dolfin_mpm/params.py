@@ -5,6 +5,8 @@ for messages. Dataclasses declare their parameters once with :func:`parameter`, 
 carries its range; :func:`check_fields` validates an instance and :func:`parameters` lists the
 fields with their ranges and defaults (what a scenario file validates against).
 
+::
+
     @dataclass(frozen=True)
     class Soil:
         phi: float = parameter(0.0, 90.0, "degrees")

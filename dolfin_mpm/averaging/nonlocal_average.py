@@ -1,5 +1,7 @@
 """Non-local averaging over particles (the paper's eqs. 2, 3 and 5).
 
+::
+
     avg(e)_i = sum_j w(s_ij) e_j V_j / sum_j w(s_ij) V_j,   s_ij = |x_i - x_j| / r,
 
 over all particles within the radius ``r`` (a circle in 2D, a sphere in 3D), self included.
