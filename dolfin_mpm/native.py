@@ -1,18 +1,27 @@
 """Compiled kernels: C sources shipped beside the modules that use them, loaded with ctypes.
 
-A source is compiled once per machine with the C compiler that DOLFINx's own just-in-time
-compilation needs anyway (``$CC``, default ``cc``), into a cache folder
+Building the package (a wheel, ``pip install .``) compiles every source into the package's
+``_kernels`` folder twice: for a baseline processor of the platform, and for the processor that
+builds it (``-march=native``, where the compiler takes it: the vectorised hypo-elastic predictor
+runs three times faster in AVX2 than in the baseline's scalar code). At run time the library
+built for this processor is loaded if the package has it, else the baseline one.
+
+Where the package carries no library for a source (an editable install, an edited source), the
+source is compiled on first use, for this processor, with ``$CC`` (default ``cc``, which
+DOLFINx's own just-in-time compilation needs anyway) into a cache folder
 (``$DOLFIN_MPM_CACHE_DIR``, else ``$XDG_CACHE_HOME/dolfin_mpm`` or ``~/.cache/dolfin_mpm``).
-The library's name carries a hash of the source, compiler, flags and processor, so an edited
-source is rebuilt; it is written under a temporary name and renamed, so MPI ranks that compile
-at the same time never load a half-written file. The code is compiled for the processor it runs
-on (``-march=native``, where the compiler takes it: the vectorised hypo-elastic predictor runs
-three times faster in AVX2 than in the baseline's scalar code). No fast-math and no contraction into fused
-multiply-adds: results are IEEE arithmetic, bit for bit the same on every processor and rank
-(math functions only do not set ``errno``, so that a loop of square roots vectorises).
+A library's name carries a hash of the source, flags and processor (and, in the cache, the
+compiler), so an edited source is rebuilt. One process compiles while the others, e.g. the
+other MPI ranks, wait on a lock; the library is written under a temporary name and renamed, so
+no process ever loads a half-written file.
+
+No fast-math and no contraction into fused multiply-adds: results are IEEE arithmetic, bit for
+bit the same for either build, on every processor and rank (math functions only do not set
+``errno``, so that a loop of square roots vectorises).
 """
 
 import ctypes
+import fcntl
 import functools
 import hashlib
 import os
@@ -23,17 +32,17 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
-import numpy as np
-
-__all__ = ["array", "cache_dir", "kernels", "load"]
+__all__ = ["PACKAGED", "array", "build", "cache_dir", "kernels", "load"]
 
 FLAGS = ("-O3", "-std=c99", "-fno-math-errno", "-ffp-contract=off", "-fPIC", "-shared")
 #: Tried first; dropped where the compiler refuses them.
 NATIVE = ("-march=native",)
+#: The libraries compiled when the package was built.
+PACKAGED = Path(__file__).parent / "_kernels"
 
 
 def cache_dir() -> Path:
-    """The folder of the compiled libraries."""
+    """The folder of the libraries compiled at run time."""
     if "DOLFIN_MPM_CACHE_DIR" in os.environ:
         return Path(os.environ["DOLFIN_MPM_CACHE_DIR"])
     return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "dolfin_mpm"
@@ -45,21 +54,54 @@ def load(source: Path, signatures: dict[str, tuple]) -> ctypes.CDLL:
     ``signatures`` maps each function name to its ctypes argument types (all return void).
     Raises ``RuntimeError`` with the compiler's output when compiling fails.
     """
-    compiler = shlex.split(os.environ.get("CC", "cc"))
-    text = source.read_bytes()
-    key = hashlib.sha256(b"\0".join([text, *map(str.encode, [*compiler, *FLAGS, *NATIVE, _processor()])]))
-    library = cache_dir() / f"{source.stem}-{key.hexdigest()[:16]}.so"
-    if not library.exists():
-        _compile(compiler, source, library)
-    lib = ctypes.CDLL(str(library))
+    lib = ctypes.CDLL(str(library(source)))
     for name, argtypes in signatures.items():
         getattr(lib, name).argtypes, getattr(lib, name).restype = argtypes, None
     return lib
 
 
+def library(source: Path) -> Path:
+    """The compiled library of ``source``: the package's, else the cache's (compiled if missing)."""
+    text = source.read_bytes()
+    for flags in ((*FLAGS, *NATIVE), FLAGS):
+        packaged = PACKAGED / _name(source, text, flags)
+        if packaged.exists():
+            return packaged
+    compiler = shlex.split(os.environ.get("CC", "cc"))
+    cached = cache_dir() / _name(source, text, (*compiler, *FLAGS, *NATIVE))
+    if not cached.exists():
+        _compile_once(compiler, source, cached)
+    return cached
+
+
+def build(source: Path, folder: Path, compiler: list[str] | None = None) -> list[Path]:
+    """Compile ``source`` into ``folder`` for the baseline processor and for this one.
+
+    What building the package does; the second library is left out where the compiler refuses
+    native code. Returns the libraries written. Raises ``RuntimeError`` when compiling fails.
+    """
+    compiler = compiler or shlex.split(os.environ.get("CC", "cc"))
+    text, built = source.read_bytes(), []
+    for flags in ((*FLAGS, *NATIVE), FLAGS):
+        target = folder / _name(source, text, flags)
+        error = _run(compiler, flags, source, target)
+        if error is None:
+            built.append(target)
+        elif flags == FLAGS:
+            raise RuntimeError(f"compiling {source.name} with {' '.join(compiler)} failed:\n{error}")
+    return built
+
+
 def kernels(source: Path, signatures: dict[str, tuple]) -> Callable[[], ctypes.CDLL]:
     """A function returning :func:`load` ``(source, signatures)``, loaded on its first call only."""
     return functools.cache(functools.partial(load, source, signatures))
+
+
+def _name(source: Path, text: bytes, flags) -> str:
+    """``<stem>-<hash>.so``: the hash of the source and the flags, and of the processor for native code."""
+    parts = [*flags, _processor()] if NATIVE and NATIVE[0] in flags else list(flags)
+    key = hashlib.sha256(b"\0".join([text, *map(str.encode, parts)]))
+    return f"{source.stem}-{key.hexdigest()[:16]}.so"
 
 
 @functools.cache
@@ -73,32 +115,47 @@ def _processor() -> str:
         return f"{platform.machine()} {platform.processor()}"
 
 
-def _compile(compiler: list[str], source: Path, library: Path) -> None:
+def _compile_once(compiler: list[str], source: Path, library: Path) -> None:
+    """Compile into the cache unless another process, holding the lock meanwhile, has done it."""
+    lock = library.with_name(f".{library.name}.lock")
     try:
         library.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(suffix=".so", dir=library.parent)
+        f = open(lock, "w")  # held until the library is in place
     except OSError as e:
         raise RuntimeError(
             f"cannot write the compiled kernels to {library.parent} ({e.strerror or e}); "
             "set DOLFIN_MPM_CACHE_DIR to a writable folder"
         ) from None
-    os.close(fd)
-    for flags in ([*FLAGS, *NATIVE], FLAGS):
+    with f:
+        fcntl.flock(f, fcntl.LOCK_EX)
         try:
-            command = [*compiler, *flags, str(source), "-o", tmp, "-lm"]
-            done = subprocess.run(command, capture_output=True, text=True)
-        except FileNotFoundError as e:
-            error = str(e)
-            break
+            if not library.exists():
+                error = _run(compiler, (*FLAGS, *NATIVE), source, library)
+                if error is not None:
+                    error = _run(compiler, FLAGS, source, library)
+                if error is not None:
+                    what = f"compiling {source.name} with {' '.join(compiler)} failed"
+                    raise RuntimeError(f"{what} (set CC to a C compiler):\n{error}")
+        finally:
+            lock.unlink(missing_ok=True)
+
+
+def _run(compiler: list[str], flags, source: Path, library: Path) -> str | None:
+    """Compile ``source`` into ``library`` by way of a temporary file; the error, or None."""
+    fd, tmp = tempfile.mkstemp(suffix=".so", dir=library.parent)
+    os.close(fd)
+    try:
+        done = subprocess.run(
+            [*compiler, *flags, str(source), "-o", tmp, "-lm"], capture_output=True, text=True
+        )
         error = done.stderr if done.returncode else None
-        if error is None:
-            break
+    except FileNotFoundError as e:
+        error = str(e)
     if error is None:
         os.replace(tmp, library)
     else:
         os.remove(tmp)
-        what = f"compiling {source.name} with {' '.join(compiler)} failed"
-        raise RuntimeError(f"{what} (set CC to a C compiler):\n{error}")
+    return error
 
 
 @functools.cache
@@ -108,6 +165,8 @@ def array(dtype) -> type:
     Raises ``TypeError`` for anything else. (numpy's ``ndpointer`` checks the same at about three
     times the cost per array.)
     """
+    import numpy as np  # here, so that building the package needs no numpy
+
     dtype = np.dtype(dtype)
 
     class Array:
@@ -122,6 +181,8 @@ def array(dtype) -> type:
 
 
 def _describe(a) -> str:
+    import numpy as np
+
     if isinstance(a, np.ndarray):
         return f"{'a C-contiguous' if a.flags.c_contiguous else 'a non-contiguous'} array of {a.dtype}"
     return type(a).__name__

@@ -1,4 +1,9 @@
 import ctypes
+import os
+import subprocess
+import sys
+import zipfile
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -81,3 +86,64 @@ def test_the_native_build_gives_the_portable_builds_bits(tmp_path, monkeypatch):
             lib.hypoelastic_trial(n, gdim, sigma, Ls[gdim], 1e-3, 2.0, 1.5, p, s, q)
             results.append(p.tobytes() + s.tobytes() + q.tobytes())
     assert results[0] == results[2] and results[1] == results[3]
+
+
+def test_one_process_compiles_while_the_others_wait(tmp_path, monkeypatch):
+    """Ranks that miss the cache at once: one compiles, the others load its library."""
+    log = tmp_path / "compiled"
+    cc = tmp_path / "cc"  # a compiler that records each call and takes its time
+    cc.write_text(f'#!/bin/sh\necho x >> {log}\nsleep 0.3\nexec cc "$@"\n')
+    cc.chmod(0o755)
+    monkeypatch.setenv("DOLFIN_MPM_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setenv("CC", str(cc))
+    source = tmp_path / "twice.c"
+    source.write_text("void twice(long n, double *v) { for (long k = 0; k < n; ++k) v[k] *= 2.0; }\n")
+    with ThreadPoolExecutor(4) as pool:
+        libraries = set(pool.map(lambda _: native.library(source), range(4)))
+    assert len(libraries) == 1 and log.read_text().count("x") == 1
+    assert [p.name for p in (tmp_path / "cache").iterdir()] == [libraries.pop().name]  # no lock left
+
+
+@pytest.fixture(scope="module")
+def wheel(tmp_path_factory):
+    """The package built as a wheel, and unpacked as pip would install it."""
+    folder = tmp_path_factory.mktemp("wheel")
+    root = Path(native.__file__).parents[1]
+    build = [sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation", "-w", folder]
+    subprocess.run([*build, str(root)], check=True, capture_output=True, cwd=folder)
+    (path,) = folder.glob("*.whl")
+    with zipfile.ZipFile(path) as z:
+        z.extractall(folder / "site")
+    return path, folder / "site"
+
+
+def test_the_wheel_carries_the_kernels_for_its_platform(wheel):
+    path, site = wheel
+    assert path.name.startswith("dolfin_mpm-") and path.name.split("-")[2:4] == ["py3", "none"]
+    sources = sorted((site / "dolfin_mpm").glob("*/*.c"))
+    libraries = sorted(p.name for p in (site / "dolfin_mpm" / "_kernels").glob("*.so"))
+    assert len(sources) >= 5
+    assert sorted(s.stem for s in sources for _ in range(2)) == [name.rsplit("-", 1)[0] for name in libraries]
+
+
+def test_an_installed_wheel_needs_no_compiler(wheel, tmp_path):
+    """No compiler and no writable cache: the wheel's own libraries are loaded, for this processor."""
+    _, site = wheel
+    blocked = tmp_path / "file"
+    blocked.write_text("not a folder")
+    env = {**os.environ, "PYTHONPATH": str(site), "CC": "false", "DOLFIN_MPM_CACHE_DIR": str(blocked / "c")}
+    script = (
+        "import numpy as np, dolfin_mpm\n"
+        "from dolfin_mpm import native\n"
+        "from dolfin_mpm.materials import LinearElastic\n"
+        "m = LinearElastic(E=1e6, nu=0.3, rho=1e3)\n"
+        "print(dolfin_mpm.__file__)\n"
+        "print(native.library(native.PACKAGED.parent / 'materials' / 'hypoelastic.c'))\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", script], env=env, capture_output=True, text=True, cwd=tmp_path
+    )
+    assert done.returncode == 0, done.stderr
+    package, library = map(Path, done.stdout.split())
+    assert package.is_relative_to(site) and library.parent == site / "dolfin_mpm" / "_kernels"
+    assert library.name != native._name(library, b"", native.FLAGS)  # the native build
