@@ -7,7 +7,7 @@ PYTEST_ARGS ?=
 MPI_RANKS ?= 2
 MPI_TESTS := tests/test_parallel.py tests/test_walls.py
 
-.PHONY: demo test test-pypi test-mpi test-mpi-pypi bench lint paraview-check setup setup-pypi clean
+.PHONY: demo docs test test-pypi test-mpi test-mpi-pypi bench lint paraview-check setup setup-pypi clean
 
 $(VENV)/.ready: pyproject.toml scripts/setup-debian.sh
 	bash scripts/setup-debian.sh $(VENV)
@@ -42,6 +42,11 @@ test-mpi-pypi: $(VENV_PYPI)/.ready
 
 bench: $(VENV)/.ready
 	$(PY) benchmarks/step_throughput.py
+
+# The documentation: Sphinx with its tools from docs/requirements.txt; any warning fails it.
+docs: $(VENV)/.ready
+	$(PY) -m pip install -q -r docs/requirements.txt
+	$(PY) -m sphinx -W --keep-going -b html docs docs/_build/html
 
 lint: $(VENV)/.ready
 	$(PY) -m pip install -q ruff
