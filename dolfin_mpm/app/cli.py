@@ -1,8 +1,10 @@
-"""The command line: ``dolfin-mpm run | check | resume`` (also ``python -m dolfin_mpm``).
+"""The command line: ``dolfin-mpm run | check | resume | schema`` (also ``python -m dolfin_mpm``).
 
     dolfin-mpm check demos/silo.toml                    # validate and build, then stop
     dolfin-mpm run demos/silo.toml --output results/silo --set nonlocal.radius=0
     dolfin-mpm resume results/silo                      # after Ctrl-C, a kill or a crash
+    dolfin-mpm check --explain materials.sand.phi       # what a key means and takes
+    dolfin-mpm schema -o scenario.schema.json           # the JSON Schema (--reference: the page)
 
 Exit status: 0 done, 1 the run failed (simulation or output), 2 bad input, 128 + signal
 number when stopped by SIGINT or SIGTERM (after writing a checkpoint). Under ``mpirun``
@@ -20,7 +22,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from dolfin_mpm.app import scenario
+from dolfin_mpm.app import scenario, schema
 from dolfin_mpm.app.log import LOGGER, configure
 from dolfin_mpm.app.runner import CHECKPOINT, FolderLock, Interrupted, RunError, Runner, write_run_info
 from dolfin_mpm.explicit.solver import SimulationError
@@ -57,12 +59,33 @@ def _summary(sim) -> str:
 
 
 def _check(args, comm) -> int:
+    if args.explain is not None:
+        try:
+            LOGGER.info(schema.explain(args.explain))
+        except schema.UnknownKey as e:
+            return _fail(str(e), 2)
+        return 0
     try:
         sim = scenario.build(scenario.load(args.scenario, args.set), comm)
     except scenario.ScenarioError as e:
         return _scenario_errors(args.scenario, e)
     LOGGER.info(f"{args.scenario}: OK. {_summary(sim)}")
     return 0
+
+
+def _schema(args, comm) -> int:
+    text = schema.reference() if args.reference else json.dumps(schema.schema(), indent=2) + "\n"
+    if args.output is None:
+        LOGGER.info(text.rstrip("\n"))
+        return 0
+    error = None
+    if comm.rank == 0:
+        try:
+            Path(args.output).write_text(text)
+        except OSError as e:
+            error = f"cannot write {args.output} ({e.strerror or e})"
+    error = comm.bcast(error, root=0)
+    return _fail(error, 2) if error else 0
 
 
 def _run(args, comm) -> int:
@@ -197,7 +220,10 @@ def parser() -> argparse.ArgumentParser:
     quiet = dict(action="store_true", help="no progress display, only warnings and errors")
     verbose = dict(action="store_true", help="also each checkpoint, and the stage times at the end")
     check = sub.add_parser("check", help="validate a scenario and build it, without running")
-    check.add_argument("scenario")
+    check.add_argument("scenario", nargs="?")
+    check.add_argument(
+        "--explain", metavar="KEY", help="what a key means and takes (materials.sand.phi, walls)"
+    )
     check.add_argument("--set", **overrides)
     check.add_argument("-q", "--quiet", **quiet)
     run = sub.add_parser("run", help="run a scenario")
@@ -212,16 +238,22 @@ def parser() -> argparse.ArgumentParser:
     resume.add_argument("--set", **{**overrides, "help": "change time.end or output.* (repeatable)"})
     resume.add_argument("-q", "--quiet", **quiet)
     resume.add_argument("-v", "--verbose", **verbose)
+    formats = sub.add_parser("schema", help="write the JSON Schema of scenario files")
+    formats.add_argument("-o", "--output", metavar="FILE", help="write to FILE (default: stdout)")
+    formats.add_argument("--reference", action="store_true", help="the reference page (Markdown) instead")
     return p
 
 
 def main(argv=None) -> int:
     """Run the command line ``argv`` (default ``sys.argv[1:]``); returns the exit status."""
-    args = parser().parse_args(argv)
+    p = parser()
+    args = p.parse_args(argv)
+    if args.command == "check" and (args.scenario is None) == (args.explain is None):
+        p.error("check takes a scenario, or --explain KEY alone")
     comm = MPI.COMM_WORLD
     die_with_launcher(comm)  # no rank writes on after its launcher was killed
-    configure(comm, getattr(args, "verbose", False) - args.quiet)
-    command = {"check": _check, "run": _run, "resume": _resume}[args.command]
+    configure(comm, getattr(args, "verbose", False) - getattr(args, "quiet", False))
+    command = {"check": _check, "run": _run, "resume": _resume, "schema": _schema}[args.command]
     with warnings.catch_warnings():  # a warning is one line on rank 0, as it comes
         warnings.showwarning = lambda message, *_, **__: LOGGER.warning(str(message))
         return command(args, comm)

@@ -66,8 +66,9 @@ MODELS = {
     for name, cls in (("elastic", LinearElastic), ("drucker_prager", DruckerPragerViscoplastic))
 }
 _WALLS = ("fixed", "slip", "frictional", "velocity")
-#: The keys of a wall given as geometry (:class:`~dolfin_mpm.core.walls.RigidWall`).
-_GEOMETRY = ("segment", "polygon", "facet")
+#: The keys of a wall given as geometry (:class:`~dolfin_mpm.core.walls.RigidWall`): the
+#: dimension of its points, and the least and most points (0: no limit).
+_GEOMETRY = {"segment": (2, 2, 2), "polygon": (2, 2, 0), "facet": (3, 3, 0)}
 _DIAGONALS = ("right", "left", "crossed", "right/left", "left/right")
 #: The ``[solver]`` options but ``gravity`` and ``on_exit``: (kind, default, interval or
 #: choices), as :class:`~dolfin_mpm.explicit.options.Options` declares them.
@@ -222,7 +223,9 @@ class _Checker:
         v = t[key]
         if isinstance(v, dict) and "tag" in v:
             self.keys(v, where, ("tag",))
-            number = self.value(v, where, "tag", "integer", check=Range(1, INF, closed=(True, False)))
+            number = self.value(
+                v, where, "tag", "integer", required=True, check=Range(1, INF, closed=(True, False))
+            )
             if not tag:
                 self.fail(
                     where, "a tag is for bodies and walls (a sink acts where particles are): give a box"
@@ -410,6 +413,14 @@ def _size_errors(cells: int, bodies: dict, memory: float | None, path: str) -> l
 def validate(data: dict, base: Path = Path(".")) -> dict:
     """Check the whole scenario; returns it normalised with defaults, or raises :class:`ScenarioError`."""
     c = _Checker()
+    cfg = _scenario(c, data, Path(base))
+    if c.errors:
+        raise ScenarioError(c.errors)
+    return cfg
+
+
+def _scenario(c: _Checker, data: dict, base: Path) -> dict:
+    """The scenario ``data`` normalised with defaults, its problems into ``c``."""
     c.keys(
         data,
         "",
@@ -431,7 +442,7 @@ def validate(data: dict, base: Path = Path(".")) -> dict:
     # On several ranks, as if every rank had a machine like this one (build checks exactly).
     memory = available_memory()
     memory = None if memory is None else memory * MPI.COMM_WORLD.size
-    cfg["mesh"], gdim = _mesh(c, c.table(data, "mesh", ""), Path(base))
+    cfg["mesh"], gdim = _mesh(c, c.table(data, "mesh", ""), base)
     c.mesh_file = cfg["mesh"].get("shape") == "file"
     cfg["materials"] = {
         name: _material(c, t, f"materials.{name}") for name, t in c.named_tables(data, "materials").items()
@@ -456,8 +467,6 @@ def validate(data: dict, base: Path = Path(".")) -> dict:
     cfg["output"] = _output(
         c, c.table(data, "output", "", required=False) or {}, cfg["time"], cfg["materials"], gdim
     )
-    if c.errors:
-        raise ScenarioError(c.errors)
     return cfg
 
 
@@ -677,15 +686,15 @@ def _rigid_wall(c: _Checker, t: dict, path: str, gdim: int, kind: str) -> dict:
     if kind not in ("slip", "frictional"):
         c.fail(f"{path}.type", f"a wall given as a {key} is 'slip' or 'frictional', got {_show(kind)}")
         return w
-    if (key == "facet") != (gdim == 3):
-        allowed = "a facet" if gdim == 3 else "a segment or a polygon"
+    dim, least, most = _GEOMETRY[key]
+    if dim != gdim:
+        allowed = " or ".join(f"a {k}" for k, (d, _, _) in _GEOMETRY.items() if d == gdim)
         c.fail(f"{path}.{key}", f"walls as geometry in {gdim}D are {allowed}, got a {key} (or use a region)")
         return w
     points = t[key]
-    least = {"segment": 2, "polygon": 2, "facet": 3}[key]
     shape_ok = (
         isinstance(points, list)
-        and (len(points) == 2 if key == "segment" else len(points) >= least)
+        and least <= len(points) <= (most or len(points))
         and all(isinstance(p, list) and len(p) == gdim for p in points)
         and all(isinstance(a, (int, float)) and not isinstance(a, bool) for p in points for a in p)
     )
