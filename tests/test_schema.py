@@ -8,7 +8,9 @@ import dolfin_mpm  # noqa: F401  (first: loads DOLFINx's libraries)
 
 # isort: split
 import pytest
-from test_scenario import TAGGED
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
+from test_scenario import BAD, TAGGED
 
 from dolfin_mpm.app import scenario, schema
 from dolfin_mpm.app.cli import main
@@ -164,6 +166,65 @@ def test_what_the_validator_rejects_for_a_key_the_schema_rejects(overrides):
     with pytest.raises(scenario.ScenarioError):
         scenario.validate(data, DEMOS)
     assert errors(schema.schema(), data)
+
+
+def test_the_test_suites_bad_scenario_fails_the_schema():
+    assert errors(schema.schema(), scenario.parse(BAD))
+
+
+OTHERS = [0, 0.5, -1.0, math.inf, True, "x", "y < 0.1", [0.0, 1.0], [1.0, 2.0, 3.0], {"min": [0.0, 0.0]}]
+
+
+def _candidates(spec: schema.Spec) -> list:
+    """Values at and about the edges of what ``spec`` allows, its choices and its default."""
+    out = [] if spec.default in (None, schema.VARIES) else [spec.default]
+    if isinstance(spec.check, tuple):
+        out += list(spec.check)
+    numbers = [0.0, 1.0, 0.25]
+    if isinstance(spec.check, Range):
+        r = spec.check
+        numbers += [x for x in (r.low, r.high, r.low + 1e-9, r.high - 1e-9, r.low - 1.0, r.high + 1.0)
+                    if math.isfinite(x)]  # fmt: skip
+        numbers += [schema._inside(r)]
+    out += [int(x) if spec.kind == "integer" and float(x).is_integer() else x for x in numbers]
+    out += [[x] * n for x in numbers for n in spec.sizes]
+    return out
+
+
+SPECS = {
+    f"{path}.{key}" if path else key: [f.specs[key] for f in forms if key in f.keys]
+    for path, forms in schema.record().items()
+    for key in dict.fromkeys(k for f in forms for k in f.keys)
+}
+
+
+def _toml(value) -> str:
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{k} = {_toml(v)}" for k, v in value.items()) + "}"
+    return json.dumps(value).replace("Infinity", "inf")
+
+
+@settings(max_examples=400, derandomize=True, deadline=None)
+@given(st.sampled_from(sorted(DEMOS.glob("*.toml"))), st.data())
+def test_what_the_validator_accepts_the_schema_accepts(path, draw):
+    """Demos with a key or two set to values about the edges of their ranges: never rejected by the
+    schema alone."""
+    data = scenario.parse(path.read_text())
+    overrides = []
+    for _ in range(draw.draw(st.sampled_from([1, 1, 2]))):
+        key = draw.draw(st.sampled_from(sorted(k for k in SPECS if not k.startswith("events"))))
+        value = draw.draw(
+            st.sampled_from([v for s in SPECS[key] for v in _candidates(s)]) | st.sampled_from(OTHERS)
+        )
+        names = list(data.get(key.split(".")[0], {})) if schema.NAME in key else [""]
+        assume(names)
+        overrides.append(f"{key.replace(schema.NAME, names[0])}={_toml(value)}")
+    try:
+        scenario.apply_overrides(data, overrides)
+        scenario.validate(data, DEMOS)
+    except scenario.ScenarioError:
+        return
+    assert errors(schema.schema(), data) == [], overrides
 
 
 def test_the_reference_page_is_generated():
