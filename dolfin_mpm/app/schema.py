@@ -382,9 +382,9 @@ def discriminators(forms: list[Form]) -> list[str]:
 
 
 # -- JSON Schema ---------------------------------------------------------------------------------
+#: What the validator checks beyond the schema: across keys, and against the mesh.
 _LIMITS = (
-    "Generated from the validator of dolfin_mpm.app.scenario (dolfin-mpm schema). Left to "
-    "`dolfin-mpm check`, which a schema cannot express: array lengths equal to the mesh's dimension "
+    "Left to `dolfin-mpm check`, which a schema cannot express: array lengths equal to the mesh's dimension "
     "(2 or 3), names that refer to other tables (bodies.*.material, solver.on_exit, "
     "events.remove_walls), output.figure_field's fields, bounds set by other keys (time.end >= "
     "time.start, events.time within the run, rho_c <= rho), finite numbers, whole cell counts, "
@@ -485,7 +485,7 @@ def schema() -> dict:
         "$schema": "https://json-schema.org/draft/2020-12/schema",
         "title": "dolfin-mpm scenario",
         **_tables("", fmt[""], fmt),
-        "description": _LIMITS,
+        "description": f"Generated from the validator (dolfin-mpm schema). {_LIMITS}",
     }
 
 
@@ -595,7 +595,11 @@ def _lookup(key: str) -> str:
     if path in known - {""}:
         return path
     close = difflib.get_close_matches(path, sorted(known - {""}), n=3, cutoff=0.6)
-    hint = f"did you mean {', '.join(close)}?" if close else f"the tables are {', '.join(fmt[''][0].keys)}"
+    hint = (
+        f"did you mean {', '.join(close)}?"
+        if close
+        else f"the top-level keys are {', '.join(fmt[''][0].keys)}"
+    )
     raise UnknownKey(f"{key}: no such key in a scenario; {hint}")
 
 
@@ -678,5 +682,5 @@ def reference() -> str:
                 meaning = DESCRIPTIONS.get(full, "") + (f" ({only})" if only else "")
                 cells = (f"`{name}`", _kind(spec, full, fmt), _allowed(spec, full), _default(spec), meaning)
                 out.append("| " + " | ".join(map(_cell, cells)) + " |")
-    out += ["", "## Left to the validator", "", _LIMITS.split(". ", 1)[1], ""]
+    out += ["", "## Left to the validator", "", _LIMITS, ""]
     return "\n".join(out)
