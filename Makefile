@@ -7,7 +7,7 @@ PYTEST_ARGS ?=
 MPI_RANKS ?= 2
 MPI_TESTS := tests/test_parallel.py tests/test_walls.py
 
-.PHONY: demo docs test test-pypi test-mpi test-mpi-pypi bench lint paraview-check setup setup-pypi clean
+.PHONY: demo docs docker conda test test-pypi test-mpi test-mpi-pypi bench lint paraview-check setup setup-pypi clean
 
 $(VENV)/.ready: pyproject.toml scripts/setup-debian.sh
 	bash scripts/setup-debian.sh $(VENV)
@@ -42,6 +42,14 @@ test-mpi-pypi: $(VENV_PYPI)/.ready
 
 bench: $(VENV)/.ready
 	$(PY) benchmarks/step_throughput.py
+
+# The container (Debian 12's DOLFINx; the build runs a short silo as its check) and the
+# conda-forge environment (DOLFINx 0.11); neither is built by CI, which has no engine nor conda.
+docker:
+	docker build -t dolfin_mpm .
+
+conda:
+	conda env create -f environment.yml
 
 # The documentation: Sphinx with its tools from docs/requirements.txt; any warning fails it.
 docs: $(VENV)/.ready
