@@ -564,3 +564,44 @@ def test_particle_figures_are_named_by_step_and_time_with_units(scenario_file, t
     assert (
         field_unit("volume", 3) == "m³" and field_unit("speed", 3) == "m/s" and field_unit("other", 2) == ""
     )
+
+
+def test_the_ranks_parts_merged_for_another_number_of_ranks():
+    """Sinks' totals summed and their histories combined into the cumulative mass of all ranks."""
+    from dolfin_mpm.io.checkpoint import _emptied, _merged
+
+    def part(n, history, first_node):
+        particles = {"x": np.full((n, 3), float(first_node)), "state": {"eps": np.arange(n, dtype=float)}}
+        sink = {
+            "mass": np.array(history[-1][1] if history else 0.0),
+            "momentum": np.array([1.0, -2.0]),
+            "count": np.array(len(history)),
+            "energy": np.array(0.5),
+            "history": np.array(history).reshape(-1, 2),
+        }
+        nodes = np.array([[first_node, 0.0, 0.0], [first_node + 1.0, 0.0, 0.0]])
+        R = np.arange(2 * 4, dtype=float).reshape(2, 4) + first_node
+        return {"particles": particles, "sinks": {"out": sink}, "nonlocal": {"x_built": np.zeros((1, 2))},
+                "R_changes": R, "dissipated": np.array(0.25), "nodes": nodes}  # fmt: skip
+
+    ranks = [part(3, [(0.1, 1.0), (0.3, 3.0)], 0), part(2, [(0.2, 5.0)], 2), part(0, [], 4)]
+    whole = _merged(ranks)
+    assert whole["resharded"] and whole["nonlocal"] == {}
+    assert whole["particles"]["x"].shape == (5, 3) and whole["particles"]["state"]["eps"].tolist() == [
+        0,
+        1,
+        2,
+        0,
+        1,
+    ]
+    sink = whole["sinks"]["out"]
+    assert sink["mass"] == 8.0 and sink["count"] == 3 and sink["energy"] == 1.5
+    assert sink["momentum"].tolist() == [3.0, -6.0]
+    assert sink["history"].tolist() == [[0.1, 1.0], [0.2, 6.0], [0.3, 8.0]]
+    assert (
+        whole["R_changes"].shape == (2, 12) and whole["nodes"].shape == (6, 3) and whole["dissipated"] == 0.75
+    )
+    empty = _emptied(whole)
+    assert empty["particles"]["x"].shape == (0, 3) and empty["particles"]["state"]["eps"].shape == (0,)
+    assert empty["sinks"]["out"]["mass"] == 0.0 and empty["sinks"]["out"]["history"].shape == (0, 2)
+    assert empty["dissipated"] == 0.0 and empty["R_changes"] is whole["R_changes"]

@@ -1,5 +1,6 @@
 import ctypes
 import os
+import shutil
 import subprocess
 import sys
 import zipfile
@@ -107,10 +108,13 @@ def test_one_process_compiles_while_the_others_wait(tmp_path, monkeypatch):
 @pytest.fixture(scope="module")
 def wheel(tmp_path_factory):
     """The package built as a wheel, and unpacked as pip would install it."""
-    folder = tmp_path_factory.mktemp("wheel")
-    root = Path(native.__file__).parents[1]
+    folder, root = tmp_path_factory.mktemp("wheel"), Path(native.__file__).parents[1]
+    source = folder / "source"  # a copy: building writes into the source tree
+    shutil.copytree(root / "dolfin_mpm", source / "dolfin_mpm", ignore=shutil.ignore_patterns("__pycache__"))
+    for name in ("setup.py", "pyproject.toml", "README.md", "LICENSE"):
+        shutil.copy(root / name, source)
     build = [sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation", "-w", folder]
-    subprocess.run([*build, str(root)], check=True, capture_output=True, cwd=folder)
+    subprocess.run([*build, str(source)], check=True, capture_output=True, cwd=folder)
     (path,) = folder.glob("*.whl")
     with zipfile.ZipFile(path) as z:
         z.extractall(folder / "site")

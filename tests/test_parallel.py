@@ -308,6 +308,58 @@ def test_resume_on_all_ranks_ends_where_the_uninterrupted_run_ends(tmp_path):
             assert imbalance[-1] == pytest.approx(max(counts) / np.mean(counts), rel=1e-12)
 
 
+@pytest.mark.skipif(comm.size == 1, reason="another number of ranks needs several")
+def test_resume_on_another_number_of_ranks_continues_to_round_off(tmp_path):
+    """A checkpoint of N ranks resumed on one, and of one resumed on N: the particles go to the
+    owners of their cells on the new partition, the pair lists are built anew."""
+    import shutil
+
+    from dolfin_mpm.app import scenario
+    from dolfin_mpm.app.runner import Runner
+    from dolfin_mpm.io import checkpoint
+
+    folder = comm.bcast(tmp_path, root=0)
+    path = folder / "fall.toml"
+    if comm.rank == 0:
+        path.write_text(SCENARIO)
+    comm.Barrier()
+
+    def serial(out: Path, end: str, resume: bool = False) -> None:  # on rank 0 alone
+        cfg = scenario.load(path, [f"time.end={end}"])
+        sim = scenario.build(cfg, MPI.COMM_SELF)
+        history = None
+        if resume:
+            data = checkpoint.read(out / "checkpoint.h5", MPI.COMM_SELF)
+            checkpoint.restore(sim, data)
+            history = data["history"]
+        else:
+            out.mkdir()
+            (out / "scenario.toml").write_text(SCENARIO)
+        Runner(sim, out, history=history, progress=False).run()
+
+    quiet = ["--quiet", "--output"]
+    assert main(["run", str(path), *quiet, str(folder / "ranks"), "--set", "time.end=0.04"]) == 0
+    assert main(["run", str(path), *quiet, str(folder / "ranks-to-1"), "--set", "time.end=0.022"]) == 0
+    if comm.rank == 0:
+        serial(folder / "one", "0.04")
+        serial(folder / "1-to-ranks", "0.022")
+        shutil.copy(folder / "ranks" / "run.json", folder / "1-to-ranks")
+        serial(folder / "ranks-to-1", "0.04", resume=True)
+    comm.Barrier()
+    assert main(["resume", str(folder / "1-to-ranks"), "--quiet", "--set", "time.end=0.04"]) == 0
+    if comm.rank == 0:
+        last = {f: list(csv.DictReader(open(folder / f / "history.csv")))[-1] for f in
+                ("ranks", "ranks-to-1", "one", "1-to-ranks")}  # fmt: skip
+        for resumed, reference in (("ranks-to-1", "ranks"), ("1-to-ranks", "one")):
+            a, b = last[resumed], last[reference]
+            assert float(a["t"]) == float(b["t"]) == 0.04
+            assert float(a["discharged"]) > 0.0 and int(a["particles"]) == int(b["particles"])
+            for k in ("kinetic", "strain", "potential", "dissipated", "discharged"):
+                assert float(a[k]) == pytest.approx(float(b[k]), rel=1e-9), (resumed, k)
+        resharded = checkpoint_state(folder / "1-to-ranks" / "checkpoint.h5")
+        assert resharded["attrs/ranks"] == comm.size
+
+
 def checkpoint_state(path) -> dict:
     """Every rank's part of a checkpoint and its attributes, flattened (not the history)."""
     out = {}

@@ -8,7 +8,9 @@ and the recorded history. The owned nodes' coordinates are stored to refuse a ch
 another grid or partition. Rank 0 gathers and writes it under
 a temporary name, flushes it to disk and renames it over the previous checkpoint, so that a
 crash at any moment leaves the last complete one. Restoring it into a freshly built scenario
-continues the run bit for bit (on the same number of ranks).
+continues the run bit for bit on the same number of ranks. On another number, the particles go
+to the owners of their cells on the new partition and the non-local pair lists are built anew:
+the run continues to round-off (the sums are taken in another order).
 """
 
 import hashlib
@@ -20,8 +22,11 @@ from pathlib import Path
 import h5py
 import numpy as np
 from mpi4py import MPI
+from scipy.spatial import cKDTree
 
+from dolfin_mpm.core.locate import locate
 from dolfin_mpm.io.disk import ensure_room, tree_bytes
+from dolfin_mpm.parallel.migration import migrate
 
 __all__ = ["FORMAT", "RESUMABLE", "CheckpointError", "read", "restore", "scenario_record", "write"]
 
@@ -149,9 +154,13 @@ def read(path, comm) -> dict:
         ``{"attrs": ..., "history": ..., "nodes": ...}`` and this rank's part of the state
         (see :meth:`State.tree <dolfin_mpm.explicit.state.State.tree>`).
 
+    On another number of ranks than the checkpoint's, rank 0 gets every particle and the
+    sinks' and the dissipation's totals, the others none, and every rank all nodes with their
+    ``R_changes``: :func:`restore` then hands the particles to their owners.
+
     Raises:
         CheckpointError: missing, unreadable or corrupted file (its checksum or its values), or
-            written by another number of ranks.
+            of another format.
 
     """
     parts, error = None, None
@@ -159,18 +168,22 @@ def read(path, comm) -> dict:
         try:
             with h5py.File(path, "r") as f:
                 attrs = dict(f.attrs)
-                if attrs.get("format") != FORMAT or attrs.get("ranks") != comm.size:
+                if attrs.get("format") != FORMAT:
                     raise CheckpointError(
-                        f"{path}: written by {attrs.get('ranks')} ranks (format {attrs.get('format')}); "
-                        f"resume it on {attrs.get('ranks')} ranks with this version (format {FORMAT})"
+                        f"{path}: written in format {attrs.get('format')}; this version reads format {FORMAT}"
                     )
                 tree = _read_tree(f)
                 history_sha = f["history"].attrs.get("sha256")
             history = tree.pop("history")
             if _digest(attrs, tree) != attrs.get("sha256") or _digest({}, history) != history_sha:
                 raise CheckpointError(f"{path} is corrupted: its checksum does not match its contents")
-            _check_values(attrs, tree, comm.size)
-            parts = [{"attrs": attrs, "history": history, **tree[f"rank{r}"]} for r in range(comm.size)]
+            written = int(attrs["ranks"])
+            _check_values(attrs, tree, written)
+            ranks = [tree[f"rank{r}"] for r in range(written)]
+            if written != comm.size:
+                whole = _merged(ranks)
+                ranks = [whole, *[_emptied(whole) for _ in range(comm.size - 1)]]
+            parts = [{"attrs": attrs, "history": history, **part} for part in ranks]
         except CheckpointError as e:
             error = str(e)
         except Exception as e:
@@ -179,6 +192,57 @@ def read(path, comm) -> dict:
     if error:
         raise CheckpointError(error)
     return comm.scatter(parts, root=0)
+
+
+def _merged(ranks: list[dict]) -> dict:
+    """The ranks' parts of a checkpoint as one: a part for a run on another number of ranks.
+
+    Particles and nodes are concatenated in rank order; the sinks' records and the dissipated
+    work summed, the sinks' histories combined into the cumulative mass over all ranks. The
+    non-local average's pair lists and halos are left out: they are built anew.
+    """
+
+    def joined(trees: list) -> dict | np.ndarray:
+        if isinstance(trees[0], dict):
+            return {k: joined([t[k] for t in trees]) for k in trees[0]}
+        return np.concatenate(trees)
+
+    sinks = {}
+    for name in ranks[0]["sinks"]:
+        records = [part["sinks"][name] for part in ranks]
+        sink = {k: np.sum([r[k] for r in records], axis=0) for k in ("mass", "momentum", "count", "energy")}
+        times = np.unique(np.concatenate([r["history"][:, 0] for r in records]))
+        cumulative = sum(_at(r["history"], times) for r in records)
+        sink["history"] = np.column_stack([times, cumulative]) if times.size else np.zeros((0, 2))
+        sinks[name] = sink
+    return {
+        "particles": joined([part["particles"] for part in ranks]),
+        "sinks": sinks,
+        "nonlocal": {},
+        "R_changes": np.concatenate([part["R_changes"] for part in ranks], axis=1),
+        "dissipated": np.sum([part["dissipated"] for part in ranks]),
+        "nodes": np.concatenate([part["nodes"] for part in ranks]),
+        "resharded": True,
+    }
+
+
+def _at(history: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """A cumulative record ``(t, value)`` at ``times``: its last value at or before each (0 before)."""
+    k = np.searchsorted(history[:, 0], times, side="right")
+    return np.where(k > 0, history[np.maximum(k - 1, 0), 1], 0.0) if len(history) else np.zeros(len(times))
+
+
+def _emptied(whole: dict) -> dict:
+    """``whole`` without particles and with zero sinks and dissipation: a rank's part before its share."""
+    particles = {
+        k: ({n: a[:0] for n, a in v.items()} if isinstance(v, dict) else v[:0])
+        for k, v in whole["particles"].items()
+    }
+    sinks = {
+        name: {k: (np.zeros((0, 2)) if k == "history" else np.zeros_like(v)) for k, v in rec.items()}
+        for name, rec in whole["sinks"].items()
+    }
+    return {**whole, "particles": particles, "sinks": sinks, "dissipated": np.zeros(())}
 
 
 def _check_values(attrs: dict, tree: dict, ranks: int) -> None:
@@ -212,8 +276,10 @@ def restore(sim, data: dict) -> None:
     s = sim.solver
     if not s.comm.allreduce(s.state.fits(data), MPI.LAND):  # on every rank
         raise CheckpointError("the checkpoint does not fit the scenario (particle fields or sinks differ)")
-    same_nodes = np.array_equal(data["nodes"], s.grid.node_x[: s.grid.num_owned_nodes])
-    if not s.comm.allreduce(same_nodes, MPI.LAND):  # on every rank
+    owned = s.grid.node_x[: s.grid.num_owned_nodes]
+    if data.get("resharded", False):
+        data = {**data, "R_changes": _owned_rows(data, owned, s.grid.gdim, s.comm)}
+    elif not s.comm.allreduce(np.array_equal(data["nodes"], owned), MPI.LAND):  # on every rank
         raise CheckpointError(
             "the checkpoint does not fit the scenario (the grid's nodes, or their partition, differ)"
         )
@@ -235,3 +301,23 @@ def restore(sim, data: dict) -> None:
     for k in data["attrs"]["applied"]:
         sim.apply_event(int(k))  # walls and damping as they were
     s.state.restore(data["attrs"], data)
+    if data.get("resharded", False):  # rank 0 holds every particle: to the owners of their cells
+        P = s.particles
+        migrate(s.grid, P, locate(s.grid, P.x, np.full(len(P), -1, dtype=np.int32))[0])
+
+
+def _owned_rows(data: dict, owned: np.ndarray, gdim: int, comm) -> np.ndarray:
+    """The columns of ``R_changes`` (all nodes of the checkpoint) of this rank's ``owned`` nodes.
+
+    A node is the checkpoint's node within 1e-9 of the mesh's extent: a mesh made on another
+    partition may place its nodes differently in the last bits. Raises ``CheckpointError`` on
+    every rank unless the checkpoint's nodes are the grid's.
+    """
+    nodes = data["nodes"]
+    extent = float(np.ptp(nodes, axis=0).max()) if len(nodes) else 0.0
+    distance, rows = cKDTree(nodes).query(owned, distance_upper_bound=1e-9 * extent)
+    matched = bool(np.all(np.isfinite(distance))) and len(np.unique(rows)) == len(rows)
+    if not comm.allreduce(matched, MPI.LAND) or comm.allreduce(len(owned)) != len(nodes):
+        raise CheckpointError("the checkpoint does not fit the scenario (the grid's nodes differ)")
+    columns = (rows[:, None] * gdim + np.arange(gdim)).ravel()  # R holds gdim entries per node
+    return np.asarray(data["R_changes"]).reshape(-1, len(nodes) * gdim)[:, columns]
