@@ -299,3 +299,36 @@ void p2g(int64_t n, int32_t gdim, const int32_t *dofs, const double *N, const do
   else
     p2g_of(n, 3, dofs, N, dN, m, v_p, sigma, volume, mass, momentum, force);
 }
+
+/* The nodal volumetric average of volumetric.py, for velocity gradients L component-first
+ * (gdim, gdim, n). volumetric_sums: tr[p] = sum_i L[i, i, p], vtr[p] = volume[p] tr[p] and
+ * out[dofs[a, p]] += N[a, p] vtr[p] (out holds the sums on entry). volumetric_correct:
+ * L[i, i, p] += (sum_a N[a, p] tr_node[dofs[a, p]] - tr[p]) / gdim. */
+void volumetric_sums(int64_t n, int32_t gdim, const int32_t *dofs, const double *N, const double *L,
+                     const double *volume, double *tr, double *vtr, double *out)
+{
+  for (int64_t p = 0; p < n; ++p)
+  {
+    double t = 0.0;
+    for (int32_t i = 0; i < gdim; ++i)
+      t += L[(i * gdim + i) * n + p];
+    tr[p] = t;
+    vtr[p] = volume[p] * t;
+  }
+  scatter(n, gdim + 1, dofs, N, 1, vtr, out);
+}
+
+void volumetric_correct(int64_t n, int32_t gdim, const int32_t *dofs, const double *N, const double *tr_node,
+                        const double *tr, double *L)
+{
+  const int32_t nn = gdim + 1;
+  for (int64_t p = 0; p < n; ++p)
+  {
+    double sum = 0.0;
+    for (int32_t a = 0; a < nn; ++a)
+      sum += N[a * n + p] * tr_node[dofs[a * n + p]];
+    const double delta = (sum - tr[p]) / gdim;
+    for (int32_t i = 0; i < gdim; ++i)
+      L[(i * gdim + i) * n + p] += delta;
+  }
+}

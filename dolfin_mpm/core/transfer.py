@@ -22,8 +22,10 @@ __all__ = [
     "internal_force",
     "interpolate",
     "particles_to_grid",
+    "replace_volumetric",
     "scatter",
     "volume_ratio",
+    "volumetric_sums",
 ]
 
 _INT, _NODES, _REAL = ctypes.c_int32, native.array(np.int32), native.array(np.float64)
@@ -41,6 +43,8 @@ _SIGNATURES["g2p"] = (
     ctypes.c_int64, _INT, _NODES, _REAL, _REAL, _REAL, _REAL, ctypes.c_double, ctypes.c_double, _INT,
     _REAL, _REAL, _REAL, _REAL,
 )  # fmt: skip
+_SIGNATURES["volumetric_sums"] = (ctypes.c_int64, _INT, _NODES, *[_REAL] * 6)
+_SIGNATURES["volumetric_correct"] = (ctypes.c_int64, _INT, _NODES, *[_REAL] * 4)
 _SIGNATURES["p2g"] = (ctypes.c_int64, _INT, _NODES, *[_REAL] * 9)
 _kernels = native.kernels(Path(__file__).with_suffix(".c"), _SIGNATURES)
 _UNUSED = np.zeros(1)  # what a kernel is given for an array it does not read
@@ -176,3 +180,25 @@ def volume_ratio(L: np.ndarray, dt: float) -> np.ndarray:
     J = np.empty(n)
     _kernels().volume_ratio(n, gdim, component_first(np.asarray(L, dtype=np.float64)), dt, J)
     return J
+
+
+def volumetric_sums(basis: Basis, L: np.ndarray, volume: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The traces ``tr L_p`` (``shape=(n,)``) and their local nodal sums ``sum_p N_a V_p tr L_p``.
+
+    ``L``: velocity gradients [1/s] component-first, ``shape=(gdim, gdim, n)``; ``volume``: the
+    weights ``V_p``, ``shape=(n,)``. The sums have ``shape=(num_nodes,)``.
+    """
+    gdim, n = L.shape[0], L.shape[-1]
+    tr, vtr, out = np.empty(n), np.empty(n), np.zeros(basis.num_nodes)
+    _kernels().volumetric_sums(n, gdim, basis.dofs, basis.N, L, _as_real(volume), tr, vtr, out)
+    return tr, out
+
+
+def replace_volumetric(basis: Basis, tr_node: np.ndarray, tr: np.ndarray, L: np.ndarray) -> None:
+    """``L_ii += (sum_a N_a tr_node_a - tr) / gdim`` in place: ``tr L`` becomes ``tr_node`` interpolated.
+
+    ``tr``: the traces of :func:`volumetric_sums`; ``tr_node``: nodal, ``shape=(num_nodes,)``;
+    ``L`` component-first, ``shape=(gdim, gdim, n)``, as :func:`volumetric_sums` takes it.
+    """
+    gdim, n = L.shape[0], L.shape[-1]
+    _kernels().volumetric_correct(n, gdim, basis.dofs, basis.N, _as_real(tr_node), tr, L)

@@ -13,30 +13,45 @@ import numpy as np
 
 from dolfin_mpm.core.grid import Grid
 from dolfin_mpm.core.locate import Basis
-from dolfin_mpm.core.transfer import interpolate, scatter
+from dolfin_mpm.core.transfer import replace_volumetric, scatter, volumetric_sums
 
-__all__ = ["nodal_volumetric"]
+__all__ = ["nodal_volumetric", "nodal_weight"]
 
 
-def nodal_volumetric(grid: Grid, basis: Basis, L: np.ndarray, volume: np.ndarray) -> np.ndarray:
+def nodal_weight(grid: Grid, basis: Basis, volume: np.ndarray) -> np.ndarray:
+    """The weights of the nodal average, ``sum_p N_i V_p`` (assembled), ``shape=(num_nodes,)``.
+
+    They hold for a whole step: its iterates move neither the particles nor their volumes.
+    """
+    return grid.assemble(grid.scratch, scatter(basis, volume)).copy()
+
+
+def nodal_volumetric(
+    grid: Grid, basis: Basis, L: np.ndarray, volume: np.ndarray, weight: np.ndarray | None = None
+) -> np.ndarray:
     """``L`` with its volumetric part replaced by the nodal average of ``tr L``.
 
     Args:
         L: velocity gradients [1/s], ``shape=(n, gdim, gdim)``; changed in place and returned.
         volume: particle volumes, the weights of the average, ``shape=(n,)``.
+        weight: :func:`nodal_weight` of ``volume`` (computed when not given).
 
     Returns:
         ``L + (tr_bar - tr L) / gdim * I``, where ``tr_bar = sum_i N_i(x_p) <tr L>_i`` and
         ``<tr L>_i = sum_p N_i V_p tr L_p / sum_p N_i V_p``.
 
     """
-    g = grid.gdim
-    tr = np.einsum("pii->p", L)
-    weight = grid.assemble(grid.scratch, scatter(basis, volume)).copy()
-    total = grid.assemble(grid.scratch, scatter(basis, volume * tr))
+    if weight is None:
+        weight = nodal_weight(grid, basis, volume)
+    Lc = np.moveaxis(L, 0, -1)  # component-first: what gradient() gives, viewed particle-first
+    copied = not Lc.flags.c_contiguous
+    if copied:
+        Lc = np.ascontiguousarray(Lc)
+    tr, sums = volumetric_sums(basis, Lc, volume)
+    total = grid.assemble(grid.scratch, sums)
     with np.errstate(divide="ignore", invalid="ignore"):
         tr_node = np.where(weight > 0.0, total / weight, 0.0)
-    delta = (interpolate(basis, tr_node[:, None])[:, 0] - tr) / g
-    for i in range(g):
-        L[:, i, i] += delta
+    replace_volumetric(basis, tr_node, tr, Lc)
+    if copied:
+        L[...] = np.moveaxis(Lc, -1, 0)
     return L

@@ -42,7 +42,7 @@ from dolfin_mpm.core.transfer import (
     particles_to_grid,
     volume_ratio,
 )
-from dolfin_mpm.core.volumetric import nodal_volumetric
+from dolfin_mpm.core.volumetric import nodal_volumetric, nodal_weight
 from dolfin_mpm.core.walls import Contact, contacts, stop_at_walls
 from dolfin_mpm.explicit.anderson import Anderson
 from dolfin_mpm.explicit.energy import mechanical, plastic_work
@@ -178,12 +178,20 @@ def nodal_solve(model: Model, nodal: Nodal, R: np.ndarray, dt: float) -> tuple[n
 
 
 def g2p(
-    model: Model, P: Particles, basis: Basis, nodal: Nodal, v_node: np.ndarray, a_node: np.ndarray, dt: float
+    model: Model,
+    P: Particles,
+    basis: Basis,
+    nodal: Nodal,
+    v_node: np.ndarray,
+    a_node: np.ndarray,
+    dt: float,
+    weight: np.ndarray | None = None,
 ) -> tuple[np.ndarray, ...]:
     """Particle velocities and velocity gradients from the grid, without moving the particles.
 
     With MUSL the new particle momenta are mapped back to the nodes (through the buffer
-    ``grid.velocity``) and the strain rate comes from those velocities.
+    ``grid.velocity``) and the strain rate comes from those velocities. ``weight``: the step's
+    :func:`~dolfin_mpm.core.volumetric.nodal_weight` for the nodal volumetric rate.
 
     Returns:
         The new particle velocities (PIC/FLIP blend) and the grid velocity at the particles that
@@ -200,7 +208,7 @@ def g2p(
         nodal.apply_bcs(v_node)
     L = gradient(basis, v_node)
     if model.options.volumetric == "nodal":
-        L = nodal_volumetric(grid, basis, L, P.volume)
+        L = nodal_volumetric(grid, basis, L, P.volume, weight)
     return v, v_interp, L, v_node
 
 
@@ -373,10 +381,11 @@ def advance(model: Model, state: State, timer: Timer) -> None:
     applied = None
     if law is not None and law.iterative:
         two_G = constitutive.two_G(P)
+    weight = nodal_weight(grid, basis, P.volume) if options.volumetric == "nodal" else None
     for k in range(1, (1 if average is None else options.fixed_point_max_iter) + 1):
         v_node, a_node, f_contact, reactions = nodal_solve(model, nodal, R_node, dt)
         timer.lap("nodal_solve")
-        v, v_grid, L, v_node = g2p(model, P, basis, nodal, v_node, a_node, dt)
+        v, v_grid, L, v_node = g2p(model, P, basis, nodal, v_node, a_node, dt, weight)
         timer.lap("g2p")
         trials = constitutive.trials(P, L, dt)
         if paper:  # the rates by semismooth Newton, from the last iterate's (or step's)
