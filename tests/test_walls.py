@@ -552,3 +552,52 @@ def test_each_walls_mass_at_the_nodes_is_that_of_its_particles(gdim):
         want = np.zeros(grid.num_nodes)
         np.add.at(want, basis.dofs[:, mine].T.ravel(), (basis.N[:, mine] * m[mine]).T.ravel())
         assert 10 < len(mine) < 400 and np.array_equal(share, want)
+
+
+def stop_one_wall_at_a_time(walls, x, dx, v, time, dt):
+    """What stop_at_walls does, in numpy, one wall after the other over all particles."""
+    from dolfin_mpm.core.walls import ROUNDOFF
+
+    stopped, g = 0, walls[0].gdim
+    reach = np.sqrt(np.max(sum(dx[:, c] ** 2 for c in range(g)), initial=0.0))
+    for w in walls:
+        advance = dt * (w.velocity @ w.normal)
+        phi0 = w.distance(x, time)
+        phi1 = phi0 - dx[:, 0] * w.normal[0] - dx[:, 1] * w.normal[1] + advance
+        if g == 3:
+            phi1 -= dx[:, 2] * w.normal[2]
+        cross = (phi0 < reach + abs(advance)) & (phi1 < 0.0) & (phi0 >= -ROUNDOFF * w.length)
+        idx, phi0, phi1 = np.flatnonzero(cross), phi0[cross], phi1[cross]
+        share = phi0 / (phi0 - phi1)
+        crossing = x[idx, :g] + share[:, None] * dx[idx, :g]
+        on = w._reached(crossing, time, dt, share)
+        idx, phi1 = idx[on], phi1[on]
+        dx[idx, :g] += (phi1 - ROUNDOFF * w.length)[:, None] * w.normal
+        vn = sum((v[idx, c] - w.velocity[c]) * w.normal[c] for c in range(g))
+        v[idx, :g] -= np.maximum(vn, 0.0)[:, None] * w.normal
+        stopped += idx.size
+    return stopped
+
+
+@pytest.mark.parametrize("gdim", [2, 3])
+def test_the_compiled_stop_takes_the_walls_in_turn_as_numpy_does(gdim):
+    """Bit for bit, for moving walls that meet at a corner, where a move may cross two."""
+    rng = np.random.default_rng(5)
+    if gdim == 2:
+        floor, side = [(0.0, 0.0), (1.0, 0.0)], [(1.0, 0.0), (1.0, 1.0)]
+    else:
+        floor = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]
+        side = [(1, 0, 0), (1, 1, 0), (1, 1, 1), (1, 0, 1)]
+    up, left = np.eye(gdim)[-1] * 0.3, np.eye(gdim)[0] * -0.2  # both walls move
+    walls = [dm.RigidWall(floor, velocity=up, name="floor"), dm.RigidWall(side, velocity=left, name="side")]
+    n, time, dt = 20000, 0.01, 0.05
+    x = np.zeros((n, 3))
+    x[:, :gdim] = rng.uniform(0.0, 1.0, (n, gdim))
+    x[:, 1 if gdim == 2 else 2] = rng.uniform(0.003, 0.05, n)  # near the floor as it is at time
+    x[: n // 2, 0] = 1.0 - 0.002 - rng.uniform(0.0, 0.05, n // 2)  # and half near the side
+    dx = rng.normal(0.0, 0.02, (n, gdim))
+    v = rng.normal(0.0, 1.0, (n, gdim))
+    expected = dx.copy(), v.copy()
+    count = stop_one_wall_at_a_time(walls, x, *expected, time, dt)
+    assert count > 1000 and stop_at_walls(walls, x, dx, v, time, dt) == count
+    assert np.array_equal(dx, expected[0]) and np.array_equal(v, expected[1])

@@ -66,33 +66,88 @@ void contact_apply(int64_t k, int32_t gdim, const int64_t *nodes, const double *
     contact_apply_of(k, 3, nodes, n, m, alpha, mu, u_w, v, change);
 }
 
-/* near[k] = whether point k of x (n, 3) lies less than limit[w] in front of the line (plane) of
- * some of the m walls, (a_w - x) . n_w < limit[w], a_w (m, gdim) a point of it, n_w (m, gdim)
- * its normal. */
-INLINE void near_lines_of(int64_t n, int32_t gdim, const double *restrict x, int32_t m, const double *restrict a,
-                          const double *restrict normal, const double *restrict limit, int8_t *restrict near)
+/* Particles stopped on rigid walls, one pass over the points, each point's walls in order
+ * (walls.py's stop_at_walls). Point k of x (n, 3) moving by dx (n, gdim) with velocity v (n, gdim)
+ * reaches wall w when it lies less than limit[w] in front of its line (plane),
+ * phi0 = (a_w - x) . n_w < limit[w], crosses it, phi1 = phi0 - dx . n_w + advance[w] < 0 with
+ * phi0 >= -roundoff[w] (those stopped before too), at a point over the wall as it is then (share
+ * phi0 / (phi0 - phi1) of the step): in 2D 0 <= (crossing - a_w) . t_w - shift_t[w] share <=
+ * length[w]; in 3D (crossing - shift_w - dt share u_w) . inward[e] >= offset[e] for its edges e in
+ * [begin[w], begin[w + 1]). Then dx += (phi1 - roundoff[w]) n_w puts it a round-off in front of
+ * the wall and v loses its component into the wall, relative to the wall's velocity u_w (m, gdim).
+ * stopped[0] counts the stops. */
+INLINE void stop_of(int64_t n, int32_t gdim, const double *restrict x, double *restrict dx, double *restrict v,
+                    int32_t m, const double *restrict a, const double *restrict normal,
+                    const double *restrict limit, const double *restrict advance, const double *restrict roundoff,
+                    const double *restrict tangent, const double *restrict length, const double *restrict shift_t,
+                    const double *restrict u, const double *restrict shift, double dt, const int32_t *restrict begin,
+                    const double *restrict inward, const double *restrict offset, int64_t *restrict stopped)
 {
+  int64_t count = 0;
   for (int64_t k = 0; k < n; ++k)
   {
-    int8_t any = 0;
+    const double *x_k = x + 3 * k;
+    double *dx_k = dx + gdim * k, *v_k = v + gdim * k;
     for (int32_t w = 0; w < m; ++w)
     {
-      double d = 0.0;
+      const double *a_w = a + gdim * w, *n_w = normal + gdim * w, *u_w = u + gdim * w;
+      double phi0 = 0.0;
       for (int32_t c = 0; c < gdim; ++c)
-        d += (a[gdim * w + c] - x[3 * k + c]) * normal[gdim * w + c];
-      any |= d < limit[w];
+        phi0 += (a_w[c] - x_k[c]) * n_w[c];
+      if (!(phi0 < limit[w]))
+        continue;
+      double phi1 = phi0 - dx_k[0] * n_w[0] - dx_k[1] * n_w[1] + advance[w];
+      if (gdim == 3)
+        phi1 -= dx_k[2] * n_w[2];
+      if (!(phi1 < 0.0 && phi0 >= -roundoff[w]))
+        continue;
+      const double share = phi0 / (phi0 - phi1);
+      double crossing[3];
+      for (int32_t c = 0; c < gdim; ++c)
+        crossing[c] = x_k[c] + share * dx_k[c];
+      int on = 1;
+      if (gdim == 2)
+      {
+        const double along = (crossing[0] - a_w[0]) * tangent[2 * w] + (crossing[1] - a_w[1]) * tangent[2 * w + 1] -
+                             shift_t[w] * share;
+        on = along >= 0.0 && along <= length[w];
+      }
+      else
+      {
+        double y[3];
+        for (int32_t c = 0; c < 3; ++c)
+          y[c] = crossing[c] - shift[3 * w + c] - dt * share * u_w[c];
+        for (int32_t e = begin[w]; e < begin[w + 1] && on; ++e)
+          on = y[0] * inward[3 * e] + y[1] * inward[3 * e + 1] + y[2] * inward[3 * e + 2] >= offset[e];
+      }
+      if (!on)
+        continue;
+      for (int32_t c = 0; c < gdim; ++c)
+        dx_k[c] += (phi1 - roundoff[w]) * n_w[c];
+      double vn = 0.0;
+      for (int32_t c = 0; c < gdim; ++c)
+        vn += (v_k[c] - u_w[c]) * n_w[c];
+      const double into = vn > 0.0 || vn != vn ? vn : 0.0; /* max(vn, 0), NaN kept */
+      for (int32_t c = 0; c < gdim; ++c)
+        v_k[c] -= into * n_w[c];
+      ++count;
     }
-    near[k] = any;
   }
+  stopped[0] = count;
 }
 
-void near_lines(int64_t n, int32_t gdim, const double *x, int32_t m, const double *a, const double *normal,
-                const double *limit, int8_t *near)
+void stop_at_walls(int64_t n, int32_t gdim, const double *x, double *dx, double *v, int32_t m, const double *a,
+                   const double *normal, const double *limit, const double *advance, const double *roundoff,
+                   const double *tangent, const double *length, const double *shift_t, const double *u,
+                   const double *shift, double dt, const int32_t *begin, const double *inward, const double *offset,
+                   int64_t *stopped)
 {
   if (gdim == 2)
-    near_lines_of(n, 2, x, m, a, normal, limit, near);
+    stop_of(n, 2, x, dx, v, m, a, normal, limit, advance, roundoff, tangent, length, shift_t, u, shift, dt, begin,
+            inward, offset, stopped);
   else
-    near_lines_of(n, 3, x, m, a, normal, limit, near);
+    stop_of(n, 3, x, dx, v, m, a, normal, limit, advance, roundoff, tangent, length, shift_t, u, shift, dt, begin,
+            inward, offset, stopped);
 }
 
 /* For each of the m walls of a line: out[w, dofs[a, p]] += N[a, p] mass[p] over the particles p

@@ -55,8 +55,9 @@ _kernels = native.kernels(
             ctypes.c_int64, ctypes.c_int32, native.array(np.int64), _REAL, ctypes.c_int32, _REAL, _REAL,
             _REAL, _REAL, _REAL,
         ),
-        "near_lines": (
-            ctypes.c_int64, ctypes.c_int32, _REAL, ctypes.c_int32, _REAL, _REAL, _REAL, native.array(np.int8),
+        "stop_at_walls": (
+            ctypes.c_int64, ctypes.c_int32, _REAL, _REAL, _REAL, ctypes.c_int32, *[_REAL] * 10,
+            ctypes.c_double, native.array(np.int32), _REAL, _REAL, native.array(np.int64),
         ),
         "wall_shares": (
             ctypes.c_int64, ctypes.c_int32, _REAL, _REAL, native.array(np.int32), _REAL, ctypes.c_int64,
@@ -335,20 +336,6 @@ def _wall_shares(
     return out
 
 
-def _near_lines(x: np.ndarray, walls: list, limits: list, time: float) -> np.ndarray:
-    """The points of ``x`` (``(n, 3)``) less than ``limits[w]`` [m] in front of some wall's line (plane).
-
-    One pass over the points for all walls, as they are at ``time`` [s]; ascending indices.
-    """
-    near = np.empty(len(x), dtype=np.int8)
-    starts = np.ascontiguousarray([w.start(time) for w in walls], dtype=np.float64)
-    normals = np.ascontiguousarray([w.normal for w in walls], dtype=np.float64)
-    points = np.ascontiguousarray(x, dtype=np.float64).reshape(len(x), 3)
-    limits = np.array(limits, dtype=np.float64)
-    _kernels().near_lines(len(x), walls[0].gdim, points, len(walls), starts, normals, limits, near)
-    return np.flatnonzero(near)
-
-
 def _same_line(a: tuple, b: tuple, tol: float) -> bool:
     """Whether two walls' keys (normal, velocity, offset) are one line (plane) moving as one.
 
@@ -360,37 +347,37 @@ def _same_line(a: tuple, b: tuple, tol: float) -> bool:
 def stop_at_walls(walls: list, x: np.ndarray, dx: np.ndarray, v: np.ndarray, time: float, dt: float) -> int:
     """Stop on the wall each particle whose move ``dx`` would cross one; return how many.
 
-    ``x`` (``(n, 3)``), ``dx`` and ``v`` (``(n, gdim)``) are the positions, the moves and the
-    velocities [m/s] of the step from ``time`` to ``time + dt`` [s]; ``dx`` loses the part
-    beyond the wall, ``v`` its component into the wall (relative to a moving wall).
+    ``x`` (``(n, 3)``), ``dx`` and ``v`` (``(n, gdim)``, C-contiguous) are the positions, the moves
+    and the velocities [m/s] of the step from ``time`` to ``time + dt`` [s]; ``dx`` loses the
+    part beyond the wall, ``v`` its component into the wall (relative to a moving wall). Each
+    particle meets the walls in their order; one compiled pass over the particles.
     """
     walls = [w for w in walls if isinstance(w, RigidWall)]
     if not walls:
         return 0
-    stopped, g = 0, walls[0].gdim
+    g, n = walls[0].gdim, len(x)
     moved2 = dx[:, 0] ** 2 + dx[:, 1] ** 2 if g == 2 else dx[:, 0] ** 2 + dx[:, 1] ** 2 + dx[:, 2] ** 2
-    reach = np.sqrt(np.max(moved2, initial=0.0))  # the longest move
+    reach = np.sqrt(np.max(moved2, initial=0.0))  # the longest move: only particles this near can cross
     advances = [dt * (w.velocity @ w.normal) for w in walls]  # each wall's own move along its normal
-    limits = [reach + abs(advance) for advance in advances]
-    candidates = _near_lines(x, walls, limits, time)  # only these can reach a wall
-    for w, advance, limit in zip(walls, advances, limits):
-        phi0 = w.distance(x[candidates], time)
-        reaches = phi0 < limit
-        idx, phi0 = candidates[reaches], phi0[reaches]
-        phi1 = phi0 - dx[idx, 0] * w.normal[0] - dx[idx, 1] * w.normal[1] + advance
-        if g == 3:
-            phi1 -= dx[idx, 2] * w.normal[2]
-        cross = (phi1 < 0.0) & (phi0 >= -ROUNDOFF * w.length)  # those stopped before too
-        idx, phi0, phi1 = idx[cross], phi0[cross], phi1[cross]
-        if not idx.size:
-            continue
-        share = (phi0 / (phi0 - phi1))[:, None]
-        crossing = x[idx, :g] + share * dx[idx, :g]
-        on = w._reached(crossing, time, dt, share[:, 0])
-        idx, phi1 = idx[on], phi1[on]
-        # on the wall, a round-off's width in front of it: x + dx rounded cannot land behind it
-        dx[idx, :g] += (phi1 - ROUNDOFF * w.length)[:, None] * w.normal
-        vn = (v[idx, :g] - w.velocity) @ w.normal
-        v[idx, :g] -= np.maximum(vn, 0.0)[:, None] * w.normal
-        stopped += idx.size
-    return stopped
+    per_wall = lambda values: np.ascontiguousarray(values, dtype=np.float64)  # noqa: E731
+    starts, normals = per_wall([w.start(time) for w in walls]), per_wall([w.normal for w in walls])
+    limits = per_wall([reach + abs(advance) for advance in advances])
+    roundoff = per_wall([ROUNDOFF * w.length for w in walls])
+    if g == 2:
+        tangents, lengths = per_wall([w.tangent for w in walls]), per_wall([w.length for w in walls])
+        shift_t = per_wall([(w.velocity @ w.tangent) * dt for w in walls])
+        shifts = inward = offsets = _NONE
+        begin = np.zeros(len(walls) + 1, dtype=np.int32)
+    else:
+        tangents = lengths = shift_t = _NONE
+        shifts = per_wall([w.velocity * time for w in walls])
+        inward = per_wall(np.concatenate([w._inward for w in walls]))
+        offsets = per_wall(np.concatenate([w._offset for w in walls]))
+        begin = np.cumsum([0, *(len(w._offset) for w in walls)], dtype=np.int32)
+    velocities, stopped = per_wall([w.velocity for w in walls]), np.zeros(1, dtype=np.int64)
+    _kernels().stop_at_walls(
+        n, g, np.ascontiguousarray(x, dtype=np.float64).reshape(n, 3), dx, v, len(walls), starts, normals,
+        limits, per_wall(advances), roundoff, tangents, lengths, shift_t, velocities, shifts, dt, begin,
+        inward, offsets, stopped,
+    )  # fmt: skip
+    return int(stopped[0])
