@@ -309,7 +309,7 @@ def test_resume_on_all_ranks_ends_where_the_uninterrupted_run_ends(tmp_path):
 
 
 @pytest.mark.skipif(comm.size == 1, reason="another number of ranks needs several")
-def test_resume_on_another_number_of_ranks_continues_to_round_off(tmp_path):
+def test_resume_on_another_number_of_ranks_continues_to_round_off(tmp_path, capsys):
     """A checkpoint of N ranks resumed on one, and of one resumed on N: the particles go to the
     owners of their cells on the new partition, the pair lists are built anew."""
     import shutil
@@ -346,8 +346,10 @@ def test_resume_on_another_number_of_ranks_continues_to_round_off(tmp_path):
         shutil.copy(folder / "ranks" / "run.json", folder / "1-to-ranks")
         serial(folder / "ranks-to-1", "0.04", resume=True)
     comm.Barrier()
-    assert main(["resume", str(folder / "1-to-ranks"), "--quiet", "--set", "time.end=0.04"]) == 0
+    assert main(["resume", str(folder / "1-to-ranks"), "--set", "time.end=0.04"]) == 0
+    out = capsys.readouterr().out
     if comm.rank == 0:
+        assert f"written on 1 rank: on {comm.size}, each particle went to the owner of its cell" in out
         last = {f: list(csv.DictReader(open(folder / f / "history.csv")))[-1] for f in
                 ("ranks", "ranks-to-1", "one", "1-to-ranks")}  # fmt: skip
         for resumed, reference in (("ranks-to-1", "ranks"), ("1-to-ranks", "one")):

@@ -173,6 +173,13 @@ def _continue(args, comm, folder: Path, info: dict) -> int:
     if (cfg["time"]["end"] - s.time) / s.dt < -1e-9:
         return _fail(f"time.end = {cfg['time']['end']:g} s is before the checkpoint's t = {s.time:.6g} s", 2)
     LOGGER.info(f"resuming {folder} at step {s.step_count}, t = {s.time:.6g} s")
+    written = int(data["attrs"]["ranks"])
+    if written != comm.size:
+        LOGGER.info(
+            f"the checkpoint was written on {written} rank{'s' * (written > 1)}: on {comm.size}, each "
+            "particle went to the owner of its cell and the pair lists were built anew; the run "
+            "continues to round-off"
+        )
     return _drive(Runner(sim, folder, history=data["history"], progress=not args.quiet), comm, folder)
 
 
