@@ -202,3 +202,25 @@ def test_quadrilateral_mesh_is_refused():
     )
     with pytest.raises(ValueError, match="affine simplices"):
         dm.Grid(msh)
+
+
+def test_compiling_a_form_prints_nothing(tmp_path):
+    """A fresh JIT cache: FFCx compiles a space's elements and a form without the compiler's lines."""
+    import os
+    import subprocess
+    import sys
+
+    script = (
+        "import dolfin_mpm as dm, ufl\n"
+        "from dolfinx import fem, mesh\n"
+        "from mpi4py import MPI\n"
+        "grid = dm.Grid(mesh.create_unit_square(MPI.COMM_SELF, 2, 2))\n"
+        "fem.form(ufl.TestFunction(grid.Q) * ufl.dx)\n"
+        "print('built')\n"
+    )
+    env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path)}
+    run = dict(env=env, capture_output=True, text=True, cwd=tmp_path)
+    done = subprocess.run([sys.executable, "-c", script], **run)
+    assert done.returncode == 0, done.stderr
+    assert any((tmp_path / "fenics").glob("libffcx_forms_*.c"))  # it compiled
+    assert done.stdout == "built\n" and "build_ext" not in done.stderr and "gcc" not in done.stderr

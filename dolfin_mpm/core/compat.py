@@ -11,6 +11,7 @@ try:  # The PyPI wheels load their MPI/PETSc libraries on this import.
 except ImportError:
     pass
 
+import logging
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -40,6 +41,21 @@ __all__ = [
 
 DOLFINX_VERSION: tuple[int, int] = tuple(int(v) for v in dolfinx.__version__.split(".")[:2])
 _NEW = DOLFINX_VERSION >= (0, 8)
+
+
+class _NoCompilerLines(logging.Filter):
+    """Drops what distutils logs below a warning: ``running build_ext`` and the compiler's commands.
+
+    On the 0.5 line, FFCx configures the root logger and its C compiles through cffi log each
+    step at INFO, into the output of every script and run that compiles an element or a form.
+    """
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return record.levelno >= logging.WARNING or "distutils" not in record.pathname
+
+
+if not _NEW:
+    logging.getLogger().addFilter(_NoCompilerLines())
 
 
 def function_space(msh, family: str, degree: int, shape: tuple[int, ...] = ()) -> fem.FunctionSpace:
