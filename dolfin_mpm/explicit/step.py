@@ -185,13 +185,13 @@ def g2p(
     v_node: np.ndarray,
     a_node: np.ndarray,
     dt: float,
-    weight: np.ndarray | None = None,
+    patch_volume: np.ndarray | None = None,
 ) -> tuple[np.ndarray, ...]:
     """Particle velocities and velocity gradients from the grid, without moving the particles.
 
     With MUSL the new particle momenta are mapped back to the nodes (through the buffer
-    ``grid.velocity``) and the strain rate comes from those velocities. ``weight``: the step's
-    :func:`~dolfin_mpm.core.volumetric.nodal_weight` for the nodal volumetric rate.
+    ``grid.velocity``) and the strain rate comes from those velocities. ``patch_volume``: the
+    step's :func:`~dolfin_mpm.core.volumetric.nodal_weight` for the nodal volumetric rate.
 
     Returns:
         The new particle velocities (PIC/FLIP blend) and the grid velocity at the particles that
@@ -208,7 +208,7 @@ def g2p(
         nodal.apply_bcs(v_node)
     L = gradient(basis, v_node)
     if model.options.volumetric == "nodal":
-        L = nodal_volumetric(grid, basis, L, P.volume, weight)
+        L = nodal_volumetric(grid, basis, L, P.volume, patch_volume)
     return v, v_interp, L, v_node
 
 
@@ -381,12 +381,12 @@ def advance(model: Model, state: State, timer: Timer) -> None:
     applied = None
     if law is not None and law.iterative:
         two_G = constitutive.two_G(P)
-    weight = nodal_weight(grid, basis, P.volume) if options.volumetric == "nodal" else None
+    patch_volume = nodal_weight(grid, basis, P.volume) if options.volumetric == "nodal" else None
     timer.lap("g2p")
     for k in range(1, (1 if average is None else options.fixed_point_max_iter) + 1):
         v_node, a_node, f_contact, reactions = nodal_solve(model, nodal, R_node, dt)
         timer.lap("nodal_solve")
-        v, v_grid, L, v_node = g2p(model, P, basis, nodal, v_node, a_node, dt, weight)
+        v, v_grid, L, v_node = g2p(model, P, basis, nodal, v_node, a_node, dt, patch_volume)
         timer.lap("g2p")
         trials = constitutive.trials(P, L, dt)
         if paper:  # the rates by semismooth Newton, from the last iterate's (or step's)
