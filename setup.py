@@ -41,7 +41,7 @@ class BuildWithKernels(build_py):
         for old in folder.glob("*.so"):
             old.unlink()
         with ThreadPoolExecutor() as pool:
-            built = list(pool.map(lambda c: native.build(c, folder), sorted(package.glob("*/*.c"))))
+            built = list(pool.map(lambda c: native.build(c, folder), sorted(package.rglob("*.c"))))
         print(f"compiled {sum(map(len, built))} kernel libraries into {folder}")
 
 

@@ -12,7 +12,7 @@ DOLFINx's own just-in-time compilation needs anyway) into a cache folder
 (``$DOLFIN_MPM_CACHE_DIR``, else ``$XDG_CACHE_HOME/dolfin_mpm`` or ``~/.cache/dolfin_mpm``).
 A library's name carries a hash of the source, flags and processor (and, in the cache, the
 compiler), so an edited source is rebuilt. One process compiles while the others, e.g. the
-other MPI ranks, wait on a lock; the library is written under a temporary name and renamed, so
+other MPI ranks, wait on a lock file beside it; the library is written under a temporary name and renamed, so
 no process ever loads a half-written file.
 
 No fast-math and no contraction into fused multiply-adds: results are IEEE arithmetic, bit for
@@ -32,7 +32,7 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
-__all__ = ["PACKAGED", "array", "build", "cache_dir", "kernels", "load"]
+__all__ = ["PACKAGED", "array", "build", "cache_dir", "kernels", "library", "load"]
 
 FLAGS = ("-O3", "-std=c99", "-fno-math-errno", "-ffp-contract=off", "-fPIC", "-shared")
 #: Tried first; dropped where the compiler refuses them.
@@ -116,28 +116,35 @@ def _processor() -> str:
 
 
 def _compile_once(compiler: list[str], source: Path, library: Path) -> None:
-    """Compile into the cache unless another process, holding the lock meanwhile, has done it."""
+    """Compile into the cache unless another process, holding the lock meanwhile, has done it.
+
+    The lock file stays (removing it would let a late process lock a new file while an early
+    one still holds the old). Where the file system refuses locks, every process compiles: the
+    rename still keeps a half-written library from being loaded.
+    """
     lock = library.with_name(f".{library.name}.lock")
     try:
         library.parent.mkdir(parents=True, exist_ok=True)
-        f = open(lock, "w")  # held until the library is in place
+        fd = os.open(lock, os.O_RDONLY | os.O_CREAT, 0o644)
     except OSError as e:
         raise RuntimeError(
             f"cannot write the compiled kernels to {library.parent} ({e.strerror or e}); "
             "set DOLFIN_MPM_CACHE_DIR to a writable folder"
         ) from None
-    with f:
-        fcntl.flock(f, fcntl.LOCK_EX)
+    try:
         try:
-            if not library.exists():
-                error = _run(compiler, (*FLAGS, *NATIVE), source, library)
-                if error is not None:
-                    error = _run(compiler, FLAGS, source, library)
-                if error is not None:
-                    what = f"compiling {source.name} with {' '.join(compiler)} failed"
-                    raise RuntimeError(f"{what} (set CC to a C compiler):\n{error}")
-        finally:
-            lock.unlink(missing_ok=True)
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        except OSError:
+            pass
+        if not library.exists():
+            error = _run(compiler, (*FLAGS, *NATIVE), source, library)
+            if error is not None:
+                error = _run(compiler, FLAGS, source, library)
+            if error is not None:
+                what = f"compiling {source.name} with {' '.join(compiler)} failed"
+                raise RuntimeError(f"{what} (set CC to a C compiler):\n{error}")
+    finally:
+        os.close(fd)  # and with it the lock
 
 
 def _run(compiler: list[str], flags, source: Path, library: Path) -> str | None:

@@ -73,7 +73,7 @@ def test_the_compiled_average_takes_numpys_terms_in_numpys_order(gdim):
     expected = average_one_term_at_a_time(grid, basis, np.array(L), P.volume)
     weight = nodal_weight(grid, basis, P.volume)
     for given in (None, weight):
-        for L_in in (gradient(basis, v_node), np.array(L)):
+        for L_in in (gradient(basis, v_node), np.ascontiguousarray(L)):  # component- and particle-first
             out = nodal_volumetric(grid, basis, L_in, P.volume, given)
             assert out is L_in and np.array_equal(out, expected)
 

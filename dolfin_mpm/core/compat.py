@@ -46,8 +46,9 @@ _NEW = DOLFINX_VERSION >= (0, 8)
 class _NoCompilerLines(logging.Filter):
     """Drops what distutils logs below a warning: ``running build_ext`` and the compiler's commands.
 
-    On the 0.5 line, FFCx configures the root logger and its C compiles through cffi log each
-    step at INFO, into the output of every script and run that compiles an element or a form.
+    Before DOLFINx 0.8 (the 0.5 line here), FFCx configures the root logger at import, and its C
+    compiles through cffi log each step at INFO through distutils, which logs on the root logger
+    itself: into the output of every script and run that compiles an element or a form.
     """
 
     def filter(self, record: logging.LogRecord) -> bool:

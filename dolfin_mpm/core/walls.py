@@ -182,13 +182,6 @@ class RigidWall:
         """Whether points ``y`` (``(n, 3)``, relative to the facet at t = 0) are over it."""
         return np.all(y @ self._inward.T >= self._offset, axis=1)
 
-    def _reached(self, crossing: np.ndarray, time: float, dt: float, share: np.ndarray) -> np.ndarray:
-        """Whether ``crossing`` (``(k, gdim)``) lies on the wall as it is at ``time + share dt`` [s]."""
-        if self.gdim == 2:
-            along = (crossing - self.start(time)) @ self.tangent - (self.velocity @ self.tangent) * dt * share
-            return (along >= 0.0) & (along <= self.length)
-        return self._inside(crossing - self.velocity * time - (dt * share)[:, None] * self.velocity)
-
     def check(self, grid: Grid, particles, time: float = 0.0) -> None:
         """Raise ``ValueError`` for a wall not of the grid's dimension, outside it, or with material behind.
 
@@ -356,6 +349,8 @@ def stop_at_walls(walls: list, x: np.ndarray, dx: np.ndarray, v: np.ndarray, tim
     if not walls:
         return 0
     g, n = walls[0].gdim, len(x)
+    if dx.shape != (n, g) or v.shape != (n, g):
+        raise ValueError(f"dx and v must have shape ({n}, {g}), got {dx.shape} and {v.shape}")
     moved2 = dx[:, 0] ** 2 + dx[:, 1] ** 2 if g == 2 else dx[:, 0] ** 2 + dx[:, 1] ** 2 + dx[:, 2] ** 2
     reach = np.sqrt(np.max(moved2, initial=0.0))  # the longest move: only particles this near can cross
     advances = [dt * (w.velocity @ w.normal) for w in walls]  # each wall's own move along its normal

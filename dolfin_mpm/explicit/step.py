@@ -381,8 +381,10 @@ def advance(model: Model, state: State, timer: Timer) -> None:
     applied = None
     if law is not None and law.iterative:
         two_G = constitutive.two_G(P)
-    patch_volume = nodal_weight(grid, basis, P.volume) if options.volumetric == "nodal" else None
-    timer.lap("g2p")
+    patch_volume = None
+    if options.volumetric == "nodal":
+        patch_volume = nodal_weight(grid, basis, P.volume)
+        timer.lap("g2p")
     for k in range(1, (1 if average is None else options.fixed_point_max_iter) + 1):
         v_node, a_node, f_contact, reactions = nodal_solve(model, nodal, R_node, dt)
         timer.lap("nodal_solve")
