@@ -104,15 +104,39 @@ def _name(source: Path, text: bytes, flags) -> str:
     return f"{source.stem}-{key.hexdigest()[:16]}.so"
 
 
+#: The x86 flags of /proc/cpuinfo that name instruction sets (what ``-march=native`` may use), by
+#: prefix; the others (mitigations, timers, virtualisation) change with the kernel and microcode.
+ISA_FLAGS = (
+    "3dnow", "abm", "adx", "aes", "amx", "avx", "bmi", "clflushopt", "clwb", "cx16", "cx8", "f16c", "fma",
+    "fsgsbase", "gfni", "lahf", "lzcnt", "mmx", "movbe", "movdir", "pclmul", "popcnt", "prfchw", "rdpid",
+    "rdrand", "rdseed", "sha", "sse", "ssse", "vaes", "vpclmul", "xop", "xsave",
+)  # fmt: skip
+
+
 @functools.cache
 def _processor() -> str:
-    """What ``-march=native`` compiles for: the machine and, on Linux, the CPU's model and flags."""
+    """What ``-march=native`` compiles for: the machine and, on Linux, the CPU's instruction sets."""
     try:
         with open("/proc/cpuinfo") as f:
-            lines = [line for line in f if line.startswith(("model name", "flags", "Features"))]
-        return platform.machine() + "".join(sorted(set(lines)))
+            return processor_of(f.read())
     except OSError:
         return f"{platform.machine()} {platform.processor()}"
+
+
+def processor_of(cpuinfo: str) -> str:
+    """The machine, the models and the instruction sets that the text of /proc/cpuinfo names.
+
+    Of x86 ``flags`` lines only the :data:`ISA_FLAGS`; an aarch64 ``Features`` line whole.
+    """
+    found = set()
+    for line in cpuinfo.splitlines():
+        key, _, value = line.partition(":")
+        key = key.strip()
+        if key == "flags":
+            found.add("flags: " + " ".join(sorted({f for f in value.split() if f.startswith(ISA_FLAGS)})))
+        elif key in ("model name", "Features"):
+            found.add(f"{key}: {value.strip()}")
+    return "\n".join([platform.machine(), *sorted(found)])
 
 
 def _compile_once(compiler: list[str], source: Path, library: Path) -> None:

@@ -152,3 +152,13 @@ def test_an_installed_wheel_needs_no_compiler(wheel, tmp_path):
     assert package.is_relative_to(site) and library.parent == site / "dolfin_mpm" / "_kernels"
     source = site / "dolfin_mpm" / "materials" / "hypoelastic.c"
     assert library.name == native._name(source, source.read_bytes(), (*native.FLAGS, *native.NATIVE))
+
+
+def test_the_processor_key_names_instruction_sets_not_mitigations():
+    """A kernel or microcode update adds flags such as md_clear: the native libraries still match."""
+    cpuinfo = "processor\t: 0\nmodel name\t: Some CPU\nflags\t\t: fpu sse2 avx2 fma constant_tsc{}\n"
+    key = native.processor_of(cpuinfo.format(""))
+    assert native.processor_of(cpuinfo.format(" md_clear ibpb hypervisor")) == key
+    assert "avx2" in key and "constant_tsc" not in key
+    assert native.processor_of(cpuinfo.format(" avx512f")) != key  # an instruction set more
+    assert native.processor_of(cpuinfo.replace("Some CPU", "Other CPU").format("")) != key
