@@ -57,7 +57,7 @@ def test_the_compiled_average_takes_numpys_terms_in_numpys_order(gdim):
     """Bit for bit, for a gradient's particle-first view of component-first memory and for a
     particle-first array, with the step's weights given or not."""
     from dolfin_mpm.core.transfer import gradient
-    from dolfin_mpm.core.volumetric import nodal_weight
+    from dolfin_mpm.core.volumetric import nodal_volume
 
     if gdim == 2:
         grid = dm.Grid(rectangle((0, 0), (1, 1), (6, 6), "crossed"))
@@ -71,7 +71,7 @@ def test_the_compiled_average_takes_numpys_terms_in_numpys_order(gdim):
     v_node = np.random.default_rng(2).normal(size=(basis.num_nodes, gdim))
     L = gradient(basis, v_node)  # the layout the step gives
     expected = average_one_term_at_a_time(grid, basis, np.array(L), P.volume)
-    weight = nodal_weight(grid, basis, P.volume)
+    weight = nodal_volume(grid, basis, P.volume)
     for given in (None, weight):
         for L_in in (gradient(basis, v_node), np.ascontiguousarray(L)):  # component- and particle-first
             out = nodal_volumetric(grid, basis, L_in, P.volume, given)

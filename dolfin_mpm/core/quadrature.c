@@ -2,20 +2,14 @@
  * dofs, N: (nn, n) point-major per node of the cell; cell_dofs: (nn, num_cells). */
 #include <stdint.h>
 
-/* Local sums, into zeroed arrays: each cell's volume of points (total, num_cells), each node's
- * sum_p N_i V_p (sums) and its share of the owned cells that hold points (patch). */
-void quadrature_sums(int64_t n, int32_t nn, const int32_t *restrict dofs, const double *restrict N,
-                     const int64_t *restrict cells, const double *restrict volume, int64_t num_cells,
-                     int64_t num_owned, const int32_t *restrict cell_dofs,
-                     const double *restrict cell_volume, double *restrict total, double *restrict sums,
-                     double *restrict patch)
+/* Local sums, into zeroed arrays: each cell's volume of points (total, num_cells) and each
+ * node's share of the owned cells that hold points (patch). */
+void quadrature_sums(int64_t n, const int64_t *restrict cells, const double *restrict volume, int64_t num_cells,
+                     int64_t num_owned, int32_t nn, const int32_t *restrict cell_dofs,
+                     const double *restrict cell_volume, double *restrict total, double *restrict patch)
 {
   for (int64_t p = 0; p < n; ++p)
-  {
     total[cells[p]] += volume[p];
-    for (int32_t a = 0; a < nn; ++a)
-      sums[dofs[a * n + p]] += N[a * n + p] * volume[p];
-  }
   for (int64_t e = 0; e < num_owned; ++e)
     if (total[e] > 0.0)
       for (int32_t a = 0; a < nn; ++a)

@@ -22,6 +22,7 @@ import numpy as np
 from dolfin_mpm import native
 from dolfin_mpm.core.grid import Grid
 from dolfin_mpm.core.locate import Basis
+from dolfin_mpm.core.volumetric import nodal_volume
 
 __all__ = ["FULL", "cell_weights"]
 
@@ -29,8 +30,8 @@ _INT, _REAL, _I64 = native.array(np.int32), native.array(np.float64), native.arr
 _kernels = native.kernels(
     Path(__file__).with_suffix(".c"),
     {
-        "quadrature_sums": (ctypes.c_int64, ctypes.c_int32, _INT, _REAL, _I64, _REAL, ctypes.c_int64,
-                            ctypes.c_int64, _INT, _REAL, _REAL, _REAL, _REAL),
+        "quadrature_sums": (ctypes.c_int64, _I64, _REAL, ctypes.c_int64, ctypes.c_int64, ctypes.c_int32,
+                            _INT, _REAL, _REAL, _REAL),
         "quadrature_weights": (ctypes.c_int64, ctypes.c_int32, _INT, _I64, _REAL, _REAL, _REAL, _REAL,
                                ctypes.c_double, _REAL),
     },
@@ -42,7 +43,9 @@ _kernels = native.kernels(
 FULL = 0.75
 
 
-def cell_weights(grid: Grid, basis: Basis, cells: np.ndarray, volume: np.ndarray) -> np.ndarray:
+def cell_weights(
+    grid: Grid, basis: Basis, cells: np.ndarray, volume: np.ndarray, lumped: np.ndarray | None = None
+) -> np.ndarray:
     """Factor of each particle's volume in ``R``, ``shape=(n,)``.
 
     ``A_e / sum_(p in e) V_p`` in the cells whose nodes are all full, 1 elsewhere. Collective.
@@ -50,18 +53,21 @@ def cell_weights(grid: Grid, basis: Basis, cells: np.ndarray, volume: np.ndarray
     Args:
         cells: each particle's local cell, ``shape=(n,)``.
         volume: particle volumes [m^3], ``shape=(n,)``.
+        lumped: :func:`~dolfin_mpm.core.volumetric.nodal_volume` of ``volume`` (computed when
+            not given).
 
     """
+    if lumped is None:
+        lumped = nodal_volume(grid, basis, volume)
     n, nn = len(volume), basis.dofs.shape[0]
     cells = np.ascontiguousarray(cells, dtype=np.int64)
     volume = np.ascontiguousarray(volume, dtype=np.float64)
-    total, sums, patch = np.zeros(grid.num_cells), np.zeros(basis.num_nodes), np.zeros(basis.num_nodes)
+    total, patch = np.zeros(grid.num_cells), np.zeros(basis.num_nodes)
     k = _kernels()
-    k.quadrature_sums(n, nn, basis.dofs, basis.N, cells, volume, grid.num_cells, grid.num_owned_cells,
-                      grid.cell_dofs_T, grid.cell_volume, total, sums, patch)  # fmt: skip
+    k.quadrature_sums(n, cells, volume, grid.num_cells, grid.num_owned_cells, nn, grid.cell_dofs_T,
+                      grid.cell_volume, total, patch)  # fmt: skip
     # int N_i over the cells that hold points: a wall's or a free surface's far side is no void
-    patch = grid.assemble(grid.scratch, patch).copy()
-    sums = grid.assemble(grid.scratch, sums)
+    patch = grid.assemble(grid.scratch, patch)
     w = np.empty(n)
-    k.quadrature_weights(n, nn, basis.dofs, cells, sums, patch, total, grid.cell_volume, FULL, w)
+    k.quadrature_weights(n, nn, basis.dofs, cells, lumped, patch, total, grid.cell_volume, FULL, w)
     return w

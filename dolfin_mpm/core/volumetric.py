@@ -15,13 +15,14 @@ from dolfin_mpm.core.grid import Grid
 from dolfin_mpm.core.locate import Basis
 from dolfin_mpm.core.transfer import replace_volumetric, scatter, volumetric_sums
 
-__all__ = ["nodal_volumetric", "nodal_weight"]
+__all__ = ["nodal_volume", "nodal_volumetric"]
 
 
-def nodal_weight(grid: Grid, basis: Basis, volume: np.ndarray) -> np.ndarray:
-    """The weights of the nodal average, ``sum_p N_i V_p`` (assembled), ``shape=(num_nodes,)``.
+def nodal_volume(grid: Grid, basis: Basis, volume: np.ndarray) -> np.ndarray:
+    """The particles' volume lumped at the nodes, ``sum_p N_i V_p`` (assembled), ``shape=(num_nodes,)``.
 
-    They hold for a whole step: its iterates move neither the particles nor their volumes.
+    The weights of the nodal average and what the cell quadrature compares with the nodes'
+    patches; they hold for a whole step: its iterates move neither the particles nor their volumes.
     """
     return grid.assemble(grid.scratch, scatter(basis, volume)).copy()
 
@@ -34,7 +35,7 @@ def nodal_volumetric(
     Args:
         L: velocity gradients [1/s], ``shape=(n, gdim, gdim)``; changed in place and returned.
         volume: particle volumes, the weights of the average, ``shape=(n,)``.
-        weight: :func:`nodal_weight` of ``volume`` (computed when not given).
+        weight: :func:`nodal_volume` of ``volume`` (computed when not given).
 
     Returns:
         ``L + (tr_bar - tr L) / gdim * I``, where ``tr_bar = sum_i N_i(x_p) <tr L>_i`` and
@@ -42,7 +43,7 @@ def nodal_volumetric(
 
     """
     if weight is None:
-        weight = nodal_weight(grid, basis, volume)
+        weight = nodal_volume(grid, basis, volume)
     Lc = np.moveaxis(L, 0, -1)  # component-first: what gradient() gives, viewed particle-first
     copied = not Lc.flags.c_contiguous
     if copied:

@@ -42,7 +42,7 @@ from dolfin_mpm.core.transfer import (
     particles_to_grid,
     volume_ratio,
 )
-from dolfin_mpm.core.volumetric import nodal_volumetric, nodal_weight
+from dolfin_mpm.core.volumetric import nodal_volume, nodal_volumetric
 from dolfin_mpm.core.walls import Contact, contacts, stop_at_walls
 from dolfin_mpm.explicit.anderson import Anderson
 from dolfin_mpm.explicit.energy import mechanical, plastic_work
@@ -185,13 +185,13 @@ def g2p(
     v_node: np.ndarray,
     a_node: np.ndarray,
     dt: float,
-    patch_volume: np.ndarray | None = None,
+    lumped: np.ndarray | None = None,
 ) -> tuple[np.ndarray, ...]:
     """Particle velocities and velocity gradients from the grid, without moving the particles.
 
     With MUSL the new particle momenta are mapped back to the nodes (through the buffer
-    ``grid.velocity``) and the strain rate comes from those velocities. ``patch_volume``: the
-    step's :func:`~dolfin_mpm.core.volumetric.nodal_weight` for the nodal volumetric rate.
+    ``grid.velocity``) and the strain rate comes from those velocities. ``lumped``: the step's
+    :func:`~dolfin_mpm.core.volumetric.nodal_volume`, the weights of the nodal volumetric rate.
 
     Returns:
         The new particle velocities (PIC/FLIP blend) and the grid velocity at the particles that
@@ -208,7 +208,7 @@ def g2p(
         nodal.apply_bcs(v_node)
     L = gradient(basis, v_node)
     if model.options.volumetric == "nodal":
-        L = nodal_volumetric(grid, basis, L, P.volume, patch_volume)
+        L = nodal_volumetric(grid, basis, L, P.volume, lumped)
     return v, v_interp, L, v_node
 
 
@@ -352,10 +352,14 @@ def advance(model: Model, state: State, timer: Timer) -> None:
     if options.stress == "cell":  # apart points stay stress free, out of the means
         P.sigma = cell_mean_stress(P.sigma, P.volume, cells, P.material, grid.num_cells, constitutive.apart)
         timer.lap("cell_stress")
-    weights = None
+    weights = lumped = None  # lumped: the particles' volume at the nodes, for both options
+    if options.quadrature == "cell" or options.volumetric == "nodal":
+        lumped = nodal_volume(grid, basis, P.volume)
     if options.quadrature == "cell":
-        weights = cell_weights(grid, basis, cells, P.volume)
+        weights = cell_weights(grid, basis, cells, P.volume, lumped)
         timer.lap("quadrature")
+    elif lumped is not None:
+        timer.lap("g2p")  # the nodal volumetric rate's weights
     nodal = p2g(model, P, basis, state.time, weights)
     timer.lap("p2g")
     if average is not None:
@@ -381,14 +385,10 @@ def advance(model: Model, state: State, timer: Timer) -> None:
     applied = None
     if law is not None and law.iterative:
         two_G = constitutive.two_G(P)
-    patch_volume = None
-    if options.volumetric == "nodal":
-        patch_volume = nodal_weight(grid, basis, P.volume)
-        timer.lap("g2p")
     for k in range(1, (1 if average is None else options.fixed_point_max_iter) + 1):
         v_node, a_node, f_contact, reactions = nodal_solve(model, nodal, R_node, dt)
         timer.lap("nodal_solve")
-        v, v_grid, L, v_node = g2p(model, P, basis, nodal, v_node, a_node, dt, patch_volume)
+        v, v_grid, L, v_node = g2p(model, P, basis, nodal, v_node, a_node, dt, lumped)
         timer.lap("g2p")
         trials = constitutive.trials(P, L, dt)
         if paper:  # the rates by semismooth Newton, from the last iterate's (or step's)
