@@ -3,10 +3,11 @@
 The same silo on ``--h`` (2 mm: ~1.2e5 particles) on as many ranks as the script is started
 with. The outlet opens at the start; each run times ``--steps`` steps once ``--warmup`` steps
 have set the fill flowing (particles then cross the partition, and halos and pair lists are
-rebuilt as they move), and the median of ``--runs`` runs is kept.
-Prints the time per step, the share spent migrating particles and exchanging non-local halos,
-and the speed-up against the one-rank entry of the JSON file, which collects one entry per
-rank count:
+rebuilt as they move), and the median of ``--runs`` runs is kept. The cells go to the ranks as
+``--partition`` says (:data:`demo_silo.PARTITIONS`; by default dealt anew by the particles when
+a rank holds 5 % more than the mean). Prints the time per step, the share spent migrating
+particles, exchanging non-local halos and rebalancing, and the speed-up against the one-rank
+entry of the JSON file, which collects one entry per rank count:
 
     mpirun -n 1 python benchmarks/mpi_scaling.py
     mpirun -n 2 python benchmarks/mpi_scaling.py
@@ -33,29 +34,31 @@ sys.path.insert(0, str(Path(__file__).parents[1] / "demos"))
 import demo_silo
 
 
-def measure(h: float, warmup: int, steps: int, comm: MPI.Comm) -> dict:
+def measure(h: float, warmup: int, steps: int, comm: MPI.Comm, partition: str) -> dict:
     """Timings of one run on ``comm``; barriers and maxima over all ranks of COMM_WORLD."""
-    solver, gate = demo_silo.build(h=h, radius=2 * h, comm=comm)
+    solver, gate = demo_silo.build(h=h, radius=2 * h, comm=comm, partition=partition)
     solver.bcs = [bc for bc in solver.bcs if bc is not gate]  # discharging: particles cross ranks
-    for _ in range(warmup):
-        solver.step()
+    solver.run_until(0.0, steps=warmup)  # the run loop: it rebalances
     solver.timings.clear()
+    repartitions = solver.repartitions
     rebuilds = solver.averaging.rebuilds
     halo_before = getattr(solver.averaging, "halo_seconds", 0.0)  # serial: no halo
     world = MPI.COMM_WORLD
     world.Barrier()
     start = time.perf_counter()
-    for _ in range(steps):
-        solver.step()
+    solver.run_until(0.0, steps=steps)
     world.Barrier()
     total = time.perf_counter() - start
     halo = world.allreduce(getattr(solver.averaging, "halo_seconds", 0.0) - halo_before, MPI.MAX)
     migrate = world.allreduce(solver.timings.get("migrate", 0.0), MPI.MAX)
+    rebalance = world.allreduce(solver.timings.get("rebalance", 0.0), MPI.MAX)
     return {
         "particles": solver.num_particles(),
         "ms_per_step": 1e3 * total / steps,
         "migrate_ms_per_step": 1e3 * migrate / steps,
         "halo_ms_per_step": 1e3 * halo / steps,
+        "rebalance_ms_per_step": 1e3 * rebalance / steps,
+        "repartitions": solver.repartitions - repartitions,
         "particles_per_rank_max": world.allreduce(len(solver.particles), MPI.MAX),
         "pair_rebuilds": world.allreduce(solver.averaging.rebuilds - rebuilds, MPI.MAX),
     }
@@ -68,19 +71,21 @@ def main():
     parser.add_argument("--steps", type=int, default=50)
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--independent", action="store_true", help="one whole silo per rank, side by side")
+    parser.add_argument("--partition", default="rebalance", choices=demo_silo.PARTITIONS)
     parser.add_argument("--json", type=Path, default=Path(__file__).with_name("mpi_scaling.json"))
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
     run_comm = MPI.COMM_SELF if args.independent else comm
-    runs = [measure(args.h, args.warmup, args.steps, run_comm) for _ in range(args.runs)]
+    runs = [measure(args.h, args.warmup, args.steps, run_comm, args.partition) for _ in range(args.runs)]
     result = {key: float(np.median([r[key] for r in runs])) for key in runs[0]}
     result.update(ranks=comm.size, runs=args.runs, warmup=args.warmup, steps_per_run=args.steps, h=args.h,
-                  dolfinx=dm.compat.dolfinx.__version__)  # fmt: skip
+                  partition=args.partition, dolfinx=dm.compat.dolfinx.__version__)  # fmt: skip
     if comm.rank == 0:
         table = json.loads(args.json.read_text()) if args.json.exists() else {}
         same = lambda v: (v.get("h"), v.get("warmup")) == (args.h, args.warmup)  # noqa: E731
         table = {k: v for k, v in table.items() if same(v)}  # one silo and state per file
         key = f"{comm.size} independent" if args.independent else str(comm.size)
+        key += f" {args.partition}" if comm.size > 1 and not args.independent else ""
         table[key] = result
         args.json.write_text(json.dumps(table, indent=2))
         r = result
@@ -96,7 +101,8 @@ def main():
               f"median of {args.runs} x {args.steps} steps after {args.warmup}:")  # fmt: skip
         print(f"  {r['ms_per_step']:8.1f} ms/step, of which migration {r['migrate_ms_per_step']:.1f} "
               f"and halo exchange {r['halo_ms_per_step']:.1f} ms (slowest rank); "
-              f"{r['pair_rebuilds']:.0f} pair-list rebuilds")  # fmt: skip
+              f"{r['pair_rebuilds']:.0f} pair-list rebuilds; {r['repartitions']:.0f} repartitions, "
+              f"{r['rebalance_ms_per_step']:.2f} ms/step")  # fmt: skip
         if "1" in table and comm.size > 1:
             print(f"  speed-up on {comm.size} ranks: {table['1']['ms_per_step'] / result['ms_per_step']:.2f}")
 

@@ -22,7 +22,8 @@ map time), so studies are resumed rather than repeated:
     python demos/demo_silo.py --study all --report docs/silo.md
 
 Runs and studies also run on several MPI ranks (``mpirun -n 2 python demos/demo_silo.py
---h 0.0025``); the cells go to the ranks in vertical strips of equal fill.
+--h 0.0025``); the cells go to the ranks by the fill at the start and are dealt anew by the
+particles as the silo empties, whenever a rank holds 5 % more than the mean.
 """
 
 import argparse
@@ -78,9 +79,13 @@ def grid_lines(lo: float, hi: float, h: float, fine: float | None = None, zones=
     return np.array(lines)
 
 
+#: How the cells go to the ranks (:func:`build`).
+PARTITIONS = ("rebalance", "strips", "dolfinx")
+
+
 def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, height=0.3, outlet=0.1, ppc=4,
-          shift=0.0, edge_cell=None, edge_zone=0.04, comm=MPI.COMM_WORLD, strips=True,
-          law="max", volumetric="nodal", stress="cell", quadrature="cell"):  # fmt: skip
+          shift=0.0, edge_cell=None, edge_zone=0.04, comm=MPI.COMM_WORLD, partition="rebalance",
+          rebalance=1.05, law="max", volumetric="nodal", stress="cell", quadrature="cell"):  # fmt: skip
     """The silo on a mesh of ``h`` [m]: solver, sinks and the outlet's gate, before settling.
 
     The walls, the bottom plates and the gate are rigid walls as geometry
@@ -104,14 +109,18 @@ def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, he
         edge_cell: cells of this size [m] within ``edge_zone`` [m] of the outlet edges
             (across and up from the bottom), ``h`` elsewhere; ``None``: ``h`` everywhere.
         comm: the communicator the mesh is partitioned over.
-        strips: on several ranks, deal the cells to them in vertical strips of equal fill
-            (else DOLFINx partitions them).
+        partition: on several ranks, :data:`PARTITIONS`: ``"rebalance"`` deals the cells by
+            the fill at the start and anew by the particles whenever the largest rank holds
+            more than ``rebalance`` times the mean (checked every 20 steps); ``"strips"``
+            keeps vertical strips of equal fill; ``"dolfinx"`` keeps DOLFINx's partition.
 
     Returns:
         ``(solver, gate)``; the gate is a boundary condition in ``solver.bcs``.
 
     """
     check_geometry(width, height, outlet, h)
+    if partition not in PARTITIONS:
+        raise ValueError(f"partition must be one of {PARTITIONS}, got {partition!r}")
     if not 0.0 <= wall_friction < 90.0:
         raise ValueError(f"wall_friction must be in [0, 90) degrees, got {wall_friction}")
     if not 0.0 <= shift < 1.0:
@@ -124,26 +133,27 @@ def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, he
     x0, x1 = 0.5 * (width - outlet), 0.5 * (width + outlet)  # outlet edges
     drop = 0.5 * outlet  # free fall below the outlet down to the catch line
     rows_below = math.ceil(drop / h) + 1
-    # On several ranks the cells go to them in vertical strips of equal fill: the flow is
-    # symmetric about the axis, so on two ranks the halves keep equal shares as it empties
-    # (on more, the inner strips empty faster).
+    # On several ranks the cells go to them by the fill. Vertical strips: the flow is symmetric
+    # about the axis, so on two ranks the halves keep equal shares as it empties (on more, the
+    # inner strips empty faster); rebalanced, any cuts, dealt anew as the fill moves.
     fill = lambda y: (y > 0.0) & (y < height)  # noqa: E731
+    axes = (0,) if partition == "strips" else None
     corners = [
         (-shift * h, -rows_below * h),
         (width + (shift > 0) * (1 - shift) * h, height + h),
     ]  # spare row
     if edge_cell is None:
         cells = (round(width / h) + (shift > 0), rows_below + round(height / h) + 1)
-        share = (lambda c: fill(c[1])) if strips else None
-        msh = dm.partition.create_rectangle(comm, corners, cells, weight=share, axes=(0,))
+        share = (lambda c: fill(c[1])) if partition != "dolfinx" else None
+        msh = dm.partition.create_rectangle(comm, corners, cells, weight=share, axes=axes)
     else:  # made in cell indices, then its lines are put where they belong
         zones = [(x0 - edge_zone, x0 + edge_zone), (x1 - edge_zone, x1 + edge_zone)]
         xs = grid_lines(corners[0][0], corners[1][0], h, edge_cell, zones)
         ys = grid_lines(corners[0][1], corners[1][1], h, edge_cell, [(-edge_zone, edge_zone)])
         at = lambda lines, i: np.interp(i, np.arange(len(lines)), lines)  # noqa: E731
         cells = (len(xs) - 1, len(ys) - 1)
-        share = (lambda c: fill(at(ys, c[1]))) if strips else None
-        msh = dm.partition.create_rectangle(comm, [(0.0, 0.0), cells], cells, weight=share, axes=(0,))
+        share = (lambda c: fill(at(ys, c[1]))) if partition != "dolfinx" else None
+        msh = dm.partition.create_rectangle(comm, [(0.0, 0.0), cells], cells, weight=share, axes=axes)
         msh.geometry.x[:, 0], msh.geometry.x[:, 1] = (
             at(xs, msh.geometry.x[:, 0]),
             at(ys, msh.geometry.x[:, 1]),
@@ -172,6 +182,7 @@ def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, he
     solver = dm.Solver(
         grid, P, sand, bcs=[*walls, gate], gravity=(0.0, -G), sinks=[sink], averaging=averaging,
         volumetric=volumetric, stress=stress, quadrature=quadrature,
+        rebalance=rebalance if partition == "rebalance" else np.inf,
     )  # fmt: skip
     return solver, gate
 
@@ -189,14 +200,15 @@ BAND_HEIGHTS = {"edge": 0.01, "wall": 0.15}
 
 
 class Monitor:
-    """What a run records at each call: the discharged mass; every ``xdmf_every``-th call the
+    """What a run records at each call: the discharged mass and the ranks' particle imbalance
+    (:meth:`~dolfin_mpm.Solver.imbalance`); every ``xdmf_every``-th call the
     XDMF output; from ``t_profile`` on, the profiles of e_vp_bar and v_y across the silo at
     the height ``y_c`` and of the speed at :data:`BAND_HEIGHTS` (strips of one cell, bins of
     half a cell), summed for time averages.
     """
 
     def __init__(self, output, h, width, y_c, t_profile, xdmf_every=5):
-        self.output, self.xdmf_every, self.t, self.mass = output, xdmf_every, [], []
+        self.output, self.xdmf_every, self.t, self.mass, self.imbalance = output, xdmf_every, [], [], []
         self.h, self.y_c, self.t_profile = h, y_c, t_profile
         self.edges = np.linspace(0.0, width, round(2 * width / h) + 1)
         self.sums = np.zeros((3, len(self.edges) - 1))  # count, e_vp_bar, v_y
@@ -207,6 +219,7 @@ class Monitor:
             self.output.write(solver)
         self.t.append(solver.time)
         self.mass.append(discharged_mass(solver))
+        self.imbalance.append(solver.imbalance())
         if solver.time >= self.t_profile - 1e-12:
             P = solver.particles
             strip = np.abs(P.x[:, 1] - self.y_c) < 0.5 * self.h
@@ -251,12 +264,12 @@ def settle_and_open(solver, gate, t_settle: float, progress=True) -> float:
 def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, height=0.3, outlet=0.1,
         ppc=4, shift=0.0, edge_cell=None, t_end=0.25, t_settle=0.02, output=None, interval=0.005,
         progress=True, comm=MPI.COMM_WORLD, law="max", volumetric="nodal", stress="cell",
-        quadrature="cell"):  # fmt: skip
+        quadrature="cell", partition="rebalance"):  # fmt: skip
     """Settle the fill, open the outlet at t = 0 and discharge until ``t_end`` [s].
 
     Args:
         h, radius, weight, wall_friction, width, height, outlet, ppc, shift, edge_cell, comm, law,
-            volumetric, stress, quadrature: as for :func:`build`.
+            volumetric, stress, quadrature, partition: as for :func:`build`.
         t_end: end of the discharge [s].
         t_settle: length of the damped settling phase before the opening [s].
         output: folder for the XDMF series (particles and grid), or ``None``.
@@ -275,7 +288,8 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, heig
     if not t_settle >= 0.0:
         raise ValueError(f"t_settle must be >= 0 s, got {t_settle!r}")
     solver, gate = build(
-        h, radius, weight, wall_friction, width, height, outlet, ppc, shift, edge_cell, comm=comm, law=law,
+        h, radius, weight, wall_friction, width, height, outlet, ppc, shift, edge_cell, comm=comm,
+        partition=partition, law=law,
         volumetric=volumetric, stress=stress, quadrature=quadrature,
     )  # fmt: skip
     m0 = solver.total_mass()
@@ -332,6 +346,9 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, heig
         "seconds": elapsed,
         "code": code_version(),
         "ranks": comm.size,
+        "imbalance": max(monitor.imbalance),  # over the discharge's records
+        "repartitions": solver.repartitions,
+        "rebalance_seconds": solver.timings.get("rebalance", 0.0),
         "mean_iterations": fp["iterations"] / fp["steps"] if fp["steps"] else 1.0,
         "max_iterations": fp["max_iterations"],
         "unconverged": fp["unconverged"],

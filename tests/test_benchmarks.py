@@ -43,3 +43,15 @@ def test_silo_step_refuses_bad_arguments(monkeypatch, capsys):
     with pytest.raises(SystemExit) as exit_:
         silo_step.main()
     assert exit_.value.code == 2 and "--steps must be >= 1" in capsys.readouterr().err
+
+
+def test_mpi_scaling_records_its_run(tmp_path, monkeypatch, capsys):
+    mpi_scaling = load("mpi_scaling")
+    out = tmp_path / "mpi_scaling.json"
+    monkeypatch.setattr(sys, "argv", ["mpi_scaling", "--h", "0.02", "--warmup", "20", "--steps", "5",
+                                      "--runs", "1", "--json", str(out)])  # fmt: skip
+    mpi_scaling.main()
+    r = json.loads(out.read_text())["1"]
+    assert r["ms_per_step"] > 0.0 and r["particles"] == r["particles_per_rank_max"] > 0
+    assert r["repartitions"] == 0 and r["rebalance_ms_per_step"] == 0.0  # one rank: nothing to deal
+    assert "1 rank(s)" in capsys.readouterr().out

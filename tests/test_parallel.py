@@ -119,16 +119,22 @@ def test_halo_is_kept_while_particles_move_less_than_half_the_skin():
     assert average.rebuilds == average.halo_builds  # the pair list with the halo, not in between
 
 
-def silo_run(comm, steps=200, strips=True, law="max", quadrature="particle"):
+def silo_run(comm, steps=200, partition="strips", law="max", quadrature="particle"):
     """Global measures of a short, coarse non-local silo discharge on ``comm``."""
     silo = load("demo_silo")
     weight = "cubic" if law == "max" else "wendland"
     solver, gate = silo.build(
-        h=0.025, radius=0.025, weight=weight, comm=comm, strips=strips, law=law, quadrature=quadrature
+        h=0.025,
+        radius=0.025,
+        weight=weight,
+        comm=comm,
+        partition=partition,
+        law=law,
+        quadrature=quadrature,
+        rebalance=1.0,  # with partition "rebalance": at every check (20 steps)
     )
     solver.bcs = [bc for bc in solver.bcs if bc is not gate]  # open at once: particles cross ranks
-    for _ in range(steps):
-        solver.step()
+    solver.run_until(0.0, steps=steps)  # the run loop: it deals the cells anew where asked
     e_bar = solver.particles.state["eps_vp_rate_nonlocal"]
     return {
         "particles": solver.num_particles(),
@@ -137,6 +143,7 @@ def silo_run(comm, steps=200, strips=True, law="max", quadrature="particle"):
         "e_vp_bar_max": comm.allreduce(float(e_bar.max(initial=0.0)), MPI.MAX),
         "iterations": solver.fixed_point["iterations"],
         "migrated": solver.migrated,
+        "repartitions": solver.repartitions,
     }
 
 
@@ -146,23 +153,26 @@ def serial_silo_run(law="max", quadrature="particle"):
 
 
 @pytest.mark.parametrize(
-    "strips, law, quadrature",
+    "partition, law, quadrature",
     [
-        (True, "max", "particle"),
-        (False, "max", "particle"),
-        (False, "paper", "particle"),
-        (False, "max", "cell"),
+        ("strips", "max", "particle"),
+        ("dolfinx", "max", "particle"),
+        ("dolfinx", "paper", "particle"),
+        ("dolfinx", "max", "cell"),
+        ("rebalance", "max", "particle"),
     ],
 )
-def test_silo_on_all_ranks_equals_the_serial_run(strips, law, quadrature):
-    """Strips of equal fill; DOLFINx's partition, across which the particles fall."""
-    parallel = silo_run(comm, strips=strips, law=law, quadrature=quadrature)
+def test_silo_on_all_ranks_equals_the_serial_run(partition, law, quadrature):
+    """Strips of equal fill; DOLFINx's partition, across which the particles fall; cells dealt
+    anew by the particles as they fall."""
+    parallel = silo_run(comm, partition=partition, law=law, quadrature=quadrature)
     serial = serial_silo_run(law, quadrature)
     assert parallel["discharged"] > 0.0
-    if strips and comm.size == 2:  # cut at the axis of a symmetric flow: (almost) no crossing
+    if partition == "strips" and comm.size == 2:  # cut at the axis of a symmetric flow: (almost) no crossing
         assert parallel["migrated"] < 0.01 * parallel["particles"]
     else:
         assert comm.size == 1 or parallel["migrated"] > 0
+    assert (parallel["repartitions"] > 0) == (partition == "rebalance" and comm.size > 1)
     assert parallel["particles"] == serial["particles"]
     assert parallel["iterations"] == serial["iterations"]
     for key in ("discharged", "kinetic", "e_vp_bar_max"):
@@ -208,7 +218,7 @@ def test_bisection_by_count_gives_the_same_balanced_partition_each_time(dim):
 
 
 def test_strips_of_equal_fill_balance_the_silo():
-    solver, _ = load("demo_silo").build(h=0.01, comm=comm)
+    solver, _ = load("demo_silo").build(h=0.01, comm=comm, partition="strips")
     counts = comm.allgather(len(solver.particles))
     assert sum(counts) == 4800
     assert max(counts) - min(counts) <= 240  # a column: 30 squares, 2 triangles, 4 particles
@@ -384,3 +394,107 @@ def test_a_scenario_starts_with_its_particles_balanced_over_the_ranks():
     cfg = scenario.load(Path(__file__).parents[1] / "demos" / "column_collapse.toml")
     sim = scenario.build(cfg, comm)
     assert sim.solver.imbalance() <= 1.05
+
+
+def test_dealing_the_cells_anew_keeps_the_nodal_conditions_on_their_nodes():
+    """A repartitioned grid numbers its nodes anew: each condition keeps the same points and values."""
+    from dolfin_mpm.parallel.rebalance import deal, node_inputs, renumber
+
+    grid = dm.Grid(mesh.create_rectangle(comm, [np.zeros(2), np.ones(2)], [6, 5], mesh.CellType.triangle))
+    floor = dm.FixedBC(grid.nodes_where(lambda x: np.isclose(x[1], 0.0)))
+    top = grid.nodes_where(lambda x: np.isclose(x[1], 1.0))
+    lid = dm.VelocityBC(top, np.column_stack([grid.node_x[top, 0], np.full(len(top), np.nan)]))  # u = x
+    owned = grid.num_owned_cells
+    inputs = np.asarray(grid.mesh.geometry.input_global_indices)[dm.compat.geometry_dofmap(grid.mesh)[:owned]]
+    cells = np.concatenate(comm.allgather(inputs))
+    ranks = np.arange(len(cells)) * comm.size // len(cells)  # strips of the input order: another partition
+    mine = comm.rank == 0
+    new = deal(grid, cells if mine else cells[:0], ranks.astype(np.int32) if mine else np.zeros(0, np.int32))
+    renumber(grid, new, [floor, lid])
+    assert new.partition is not None and new.comm is grid.comm
+    assert comm.allreduce(new.num_owned_cells) == comm.allreduce(owned)
+    assert np.array_equal(np.sort(floor.nodes), np.flatnonzero(np.isclose(new.node_x[:, 1], 0.0)))
+    assert np.array_equal(np.sort(lid.nodes), np.flatnonzero(np.isclose(new.node_x[:, 1], 1.0)))
+    # node_x is tabulated through each cell's map: the same point to round-off on another partition
+    assert np.allclose(lid.velocity[:, 0], new.node_x[lid.nodes, 0], rtol=0.0, atol=1e-15)
+    assert np.all(np.isnan(lid.velocity[:, 1]))
+    on = [
+        np.unique(np.concatenate(comm.allgather(node_inputs(g)[n])))
+        for g, n in ((new, lid.nodes), (grid, top))
+    ]
+    assert np.array_equal(*on)  # the same nodes over all ranks
+
+
+def test_rebalancing_evens_out_the_particles_and_changes_no_result():
+    """A block in a corner of DOLFINx's partition: dealt by the particles, the ranks hold equal
+    shares, and the run goes on as on one rank."""
+
+    def run(comm, balance: bool):
+        msh = mesh.create_rectangle(comm, [np.zeros(2), np.ones(2)], [12, 12], mesh.CellType.triangle)
+        grid = dm.Grid(msh)
+        mat = dm.DruckerPragerViscoplastic(E=1e6, nu=0.3, rho=1500.0, phi=30.0, gamma=1e3)
+        P = dm.seed(grid, mat, ppc=4, where=lambda x: (x[0] < 0.5) & (x[1] > 0.2) & (x[1] < 0.6))
+        floor = dm.FixedBC(grid.nodes_where(lambda x: np.isclose(x[1], 0.0)))
+        solver = dm.Solver(grid, P, mat, bcs=[floor], gravity=(0.0, -9.81), dt=2e-4,
+                           averaging=dm.NonlocalAverage(radius=0.1))  # fmt: skip
+        solver.run_until(0.0, steps=20)
+        before = solver.imbalance()
+        changed = solver.rebalance() if balance else False
+        after = solver.imbalance()
+        solver.run_until(0.0, steps=30)
+        return before, changed, after, solver.total_momentum(), solver.energies()
+
+    before, changed, after, p, e = run(comm, True)
+    *_, p1, e1 = run(MPI.COMM_SELF, False)
+    assert changed == (comm.size > 1)
+    if comm.size > 1:
+        assert before > 1.3, "DOLFINx's partition should leave the block on few ranks"
+        assert after <= 1.1, (before, after)
+    assert p == pytest.approx(p1, rel=1e-10, abs=1e-14)
+    for k in ("kinetic", "strain", "dissipated"):
+        assert e[k] == pytest.approx(e1[k], rel=1e-9), k
+
+
+REBALANCED = SCENARIO.replace("[solver]\n", "[solver]\nrebalance = 1.0\nrebalance_interval = 4\n")
+
+
+def test_a_rebalanced_run_resumes_bit_identical_and_equals_the_serial_run(tmp_path):
+    """The checkpoint keeps how the cells were dealt: the resumed run makes the same mesh again."""
+    from dolfin_mpm.app import scenario
+    from dolfin_mpm.app.runner import Runner
+
+    folder = comm.bcast(tmp_path, root=0)
+    path = folder / "fall.toml"
+    if comm.rank == 0:
+        path.write_text(REBALANCED)
+    comm.Barrier()
+    quiet = ["--quiet", "--output"]
+    assert main(["run", str(path), *quiet, str(folder / "reference")]) == 0
+    assert main(["run", str(path), *quiet, str(folder / "run"), "--set", "time.end=0.023"]) == 0
+    assert main(["resume", str(folder / "run"), "--quiet", "--set", "time.end=0.04"]) == 0
+    if comm.rank == 0:
+        one = folder / "one"
+        one.mkdir()
+        Runner(scenario.build(scenario.load(path), MPI.COMM_SELF), one, progress=False).run()
+        reference, resumed = (checkpoint_state(folder / f / "checkpoint.h5") for f in ("reference", "run"))
+        assert bool(reference["attrs/repartitioned"]) == (comm.size > 1)
+        assert reference.keys() == resumed.keys()
+        for k in reference:
+            assert np.array_equal(reference[k], resumed[k]), k
+        with h5py.File(folder / "reference" / "checkpoint.h5") as f:
+            assert ("partition" in f) == (comm.size > 1)
+        last = {f: list(csv.DictReader(open(folder / f / "history.csv")))[-1] for f in ("reference", "one")}
+        assert float(last["reference"]["discharged"]) > 0.0
+        grids = {}  # the grid series keeps one mesh in input order through every repartition
+        for f in ("reference", "one"):
+            with h5py.File(folder / f / "grid.h5") as h5:  # mid-run: at the end all has sunk
+                grids[f] = (h5["mesh/x"][()], h5["mesh/cells"][()], h5["step10/momentum"][()])
+        (x, cells, momentum), (x1, cells1, momentum1) = grids["reference"], grids["one"]
+        distance, match = cKDTree(x1).query(x)  # the serial mesh may number its input otherwise
+        assert distance.max() < 1e-12 and np.unique(match).size == len(x1)
+        as_set = lambda cells: {tuple(c) for c in np.sort(cells, axis=1)}  # noqa: E731
+        assert as_set(match[cells]) == as_set(cells1)
+        assert np.abs(momentum).max() > 0.0
+        assert np.allclose(momentum, momentum1[match], rtol=1e-9, atol=1e-12 * np.abs(momentum).max())
+        for k in ("kinetic", "strain", "potential", "dissipated", "discharged"):
+            assert float(last["reference"][k]) == pytest.approx(float(last["one"][k]), rel=1e-9), k

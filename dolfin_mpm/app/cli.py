@@ -206,6 +206,13 @@ def _details(s, count: int) -> list[str]:
     """What ``-v`` adds at the end of a run of ``count`` steps: where the time went, what the loop did."""
     times = ", ".join(f"{name} {1e3 * t / max(count, 1):.3g}" for name, t in s.timings.items() if t > 0.0)
     lines = [f"stages [ms per step, over the {count} steps of this run]: {times}"]
+    if s.comm.size > 1:
+        seconds, total = s.timings.get("rebalance", 0.0), sum(s.timings.values())
+        share = 100 * seconds / max(total, 1e-300)
+        lines.append(
+            f"ranks: {s.repartitions} repartitions in {seconds:.3g} s ({share:.2g} % of the steps' time), "
+            f"{s.migrated} particle moves between ranks, imbalance now {s.imbalance():.3f}"
+        )
     fp = s.fixed_point
     if s.averaging is not None and fp["steps"] > 0:
         lines.append(

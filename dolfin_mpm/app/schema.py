@@ -126,6 +126,9 @@ DESCRIPTIONS = {
     "solver.relaxation": "under-relaxation of the fixed-point iterates [-]",
     "solver.anderson_depth": "depth of the fixed-point loop's Anderson acceleration (0: plain iteration)",
     "solver.extrapolation": "order of the fixed-point loop's first iterate, extrapolated from the last steps",
+    "solver.rebalance": "under MPI, deal the cells to the ranks anew by their particles when the largest "
+    "rank's particle count over the mean exceeds this [-] (default: never)",
+    "solver.rebalance_interval": "steps between the checks of the ranks' particle imbalance",
     "time": "the span of the run",
     "time.start": "start time [s]; a negative start is whole steps before t = 0",
     "time.end": "end time [s], at or after time.start",

@@ -53,6 +53,14 @@ class BoundaryCondition:
         """Correct the nodal velocities ``v`` (``shape=(num_nodes, gdim)``) in place."""
         raise NotImplementedError
 
+    def node_values(self) -> dict[str, np.ndarray]:
+        """The condition's per-node arrays by name, each with a row per node of ``nodes``."""
+        return {}
+
+    def renumber(self, nodes: np.ndarray, values: dict[str, np.ndarray]) -> None:
+        """Hold ``nodes`` of a repartitioned grid, with the rows ``values`` of :meth:`node_values`."""
+        self.nodes = np.asarray(nodes, dtype=np.int64)
+
 
 @dataclass
 class FixedBC(BoundaryCondition):
@@ -82,6 +90,14 @@ class VelocityBC(BoundaryCondition):
         if np.isinf(v).any():
             raise ValueError("velocity must be finite (NaN for a free component), got an infinite one")
         self.velocity = np.broadcast_to(v, (len(self.nodes), v.shape[-1]))
+        self._set = ~np.isnan(self.velocity)
+
+    def node_values(self):
+        return {"velocity": np.asarray(self.velocity)}
+
+    def renumber(self, nodes, values):
+        super().renumber(nodes, values)
+        self.velocity = values["velocity"]
         self._set = ~np.isnan(self.velocity)
 
     def apply(self, v):

@@ -38,6 +38,9 @@ class Grid:
     def __init__(self, msh):
         self.mesh = msh
         self.comm = msh.comm
+        self._comm_owner = msh  # DOLFINx frees a mesh's communicator with the mesh
+        #: How a repartitioned mesh was dealt (:meth:`repartitioned`), ``None`` for the first.
+        self.partition: tuple[np.ndarray, np.ndarray] | None = None
         self.gdim = msh.geometry.dim
         self.tdim = msh.topology.dim
         if self.gdim != self.tdim or self.tdim not in (2, 3):
@@ -98,6 +101,19 @@ class Grid:
         edges = X[:, :, None, :] - X[:, None, :, :]  # (num_cells, d+1, d+1, gdim), d+1 small
         self.diameter = float(np.sqrt((edges**2).sum(axis=-1)).max()) if self.num_cells else 0.0
         self.tree = compat.bounding_box_tree(msh)
+
+    def repartitioned(self, msh, partition: tuple[np.ndarray, np.ndarray]) -> "Grid":
+        """The grid of ``msh``, this grid's mesh dealt to the ranks anew, on this grid's ``comm``.
+
+        ``partition``: ``(cells, ranks)`` the mesh was created from, every cell's vertices by
+        their input numbers and its rank, on rank 0 (empty arrays elsewhere); a checkpoint
+        stores it to create the same mesh again. The communicator stays the one the run's
+        other parts hold; its mesh (the run's first) is kept alive with the new grid, for
+        DOLFINx frees a mesh's communicator with it.
+        """
+        grid = Grid(msh)
+        grid.comm, grid._comm_owner, grid.partition = self.comm, self._comm_owner, partition
+        return grid
 
     def assemble(self, u: fem.Function, values: np.ndarray) -> np.ndarray:
         """Set ``u`` from per-node local sums, add ghost sums into owners, refresh ghosts.

@@ -20,7 +20,7 @@ QUADRATURE = ("particle", "cell")
 
 
 #: The options that take whole numbers.
-INTEGERS = ("fixed_point_max_iter", "anderson_depth", "extrapolation")
+INTEGERS = ("fixed_point_max_iter", "anderson_depth", "extrapolation", "rebalance_interval")
 
 
 @dataclass(frozen=True)
@@ -52,6 +52,10 @@ class Options:
         relaxation: under-relaxation of the ``R`` iterates, in (0, 1].
         anderson_depth: Anderson acceleration depth of the loop, >= 0 (0: plain iteration).
         extrapolation: order 0, 1 or 2 of the loop's first iterate (see :mod:`dolfin_mpm.explicit.step`).
+        rebalance: under MPI, deal the cells to the ranks anew by their particles when the
+            imbalance (the largest rank's particle count over the mean) exceeds this, >= 1
+            (``inf``: never; see :mod:`dolfin_mpm.parallel.rebalance`).
+        rebalance_interval: steps between the checks of the imbalance, >= 1.
 
     """
 
@@ -70,6 +74,8 @@ class Options:
     relaxation: float = parameter(0.0, 1.0, closed=(False, True), default=1.0)
     anderson_depth: int = parameter(0, np.inf, closed=(True, False), default=5)
     extrapolation: int = parameter(0, 2, closed=(True, True), default=2)
+    rebalance: float = parameter(1.0, np.inf, closed=(True, True), default=np.inf)
+    rebalance_interval: int = parameter(1, np.inf, closed=(True, False), default=20)
 
     def __post_init__(self):
         if self.scheme not in SCHEMES:

@@ -29,6 +29,7 @@ from dolfin_mpm.explicit.timer import Timer
 from dolfin_mpm.materials import Material
 from dolfin_mpm.parallel import ids
 from dolfin_mpm.parallel.halo import over_ranks
+from dolfin_mpm.parallel.rebalance import deal, move_to, renumber, repartition
 from dolfin_mpm.params import check_range
 
 __all__ = ["SimulationError", "Solver"]
@@ -133,6 +134,7 @@ class Solver:
     step_count = property(lambda self: self.state.step)
     fixed_point = property(lambda self: self.state.fixed_point)
     migrated = property(lambda self: self.state.migrated)
+    repartitions = property(lambda self: self.state.repartitions)
     timings = property(lambda self: self.timer.seconds)
 
     @property
@@ -183,6 +185,36 @@ class Solver:
         """Advance particles and grid by one time step ``dt``."""
         advance(self.model, self.state, self.timer)
 
+    def rebalance(self) -> bool:
+        """Deal the mesh's cells to the ranks anew by the particles they hold (collective).
+
+        The particles, the nodal boundary conditions and the loop's history of ``R`` follow
+        the new partition (:mod:`dolfin_mpm.parallel.rebalance`); the results are those of
+        the old partition to round-off. Returns whether the grid changed (never on one rank).
+        """
+        if self.comm.size == 1:
+            return False
+        self.timer.start()
+        grid, owner = repartition(self.grid, self.particles)
+        if grid is not None:
+            self.state.R_changes = move_to(
+                self.grid, grid, owner, self.particles, self.bcs, self.state.R_changes
+            )
+            self.model.grid = grid
+            self.state.repartitions += 1
+        self.timer.lap("rebalance")
+        return grid is not None
+
+    def deal(self, cells: np.ndarray, ranks: np.ndarray) -> None:
+        """Deal the cells as in :attr:`Grid.partition <dolfin_mpm.core.grid.Grid.partition>` (collective).
+
+        For a checkpoint's partition, before its state is restored: the nodal boundary
+        conditions follow, the particles not (the checkpoint brings their own).
+        """
+        grid = deal(self.grid, cells, ranks)
+        renumber(self.grid, grid, self.bcs)
+        self.model.grid = grid
+
     def run_until(
         self,
         t_end: float,
@@ -191,6 +223,10 @@ class Solver:
         steps: int | None = None,
     ):
         """Step until ``t_end`` [s]; the run loop of every driver.
+
+        Under MPI, every ``rebalance_interval`` steps the cells are dealt to the ranks anew
+        (:meth:`rebalance`) where the :meth:`imbalance` exceeds the option ``rebalance``,
+        before the actions of that step.
 
         Args:
             t_end: the time to reach [s]; whole steps are taken while more than 1e-9 of a
@@ -201,10 +237,17 @@ class Solver:
             steps: take exactly this many steps instead (the count fixed before the run).
 
         """
-        state = self.state
+        state, options = self.state, self.model.options
+        balance = self.comm.size > 1 and math.isfinite(options.rebalance)
         last = None if steps is None else state.step + steps
         while (t_end - state.time) / state.dt > 1e-9 if last is None else state.step < last:
             self.step()
+            if (
+                balance
+                and state.step % options.rebalance_interval == 0
+                and self.imbalance() > options.rebalance
+            ):
+                self.rebalance()
             for every, action in actions:
                 if (state.step - origin) % every == 0:
                     action()

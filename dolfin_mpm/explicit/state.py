@@ -37,6 +37,8 @@ class State:
         dissipated: the (visco)plastic work [J] of the stress updates on this rank since the
             start (:func:`dolfin_mpm.explicit.energy.plastic_work`).
         migrated: particles moved between ranks since the start (a diagnostic, not stored).
+        repartitions: the times the cells were dealt to the ranks anew since the start (a
+            diagnostic, not stored).
         wall_stops: particle moves cut short at a rigid wall since the start (a diagnostic,
             not stored).
         reactions: the force [N] of each rigid wall on the material in the last step, on this
@@ -54,6 +56,7 @@ class State:
     fixed_point: dict[str, int] = field(default_factory=lambda: dict.fromkeys(FIXED_POINT_STATISTICS, 0))
     dissipated: float = 0.0
     migrated: int = 0
+    repartitions: int = 0
     wall_stops: int = 0
     reactions: dict = field(default_factory=dict)
 

@@ -114,6 +114,7 @@ def write(path, sim, history: dict[str, np.ndarray]) -> None:
     """
     comm = sim.solver.comm
     parts = comm.gather(_local_state(sim), root=0)
+    partition = sim.solver.grid.partition
     error = None
     if comm.rank == 0:
         path = Path(path)
@@ -126,9 +127,12 @@ def write(path, sim, history: dict[str, np.ndarray]) -> None:
                     "ranks": comm.size,
                     "applied": np.array(sim.applied, dtype=np.int64),
                     "scenario": scenario_record(sim.config),
+                    "repartitioned": partition is not None,
                     **sim.solver.state.scalars(),
                 }
                 ranks = {f"rank{rank}": part for rank, part in enumerate(parts)}
+                if partition is not None:  # the cells dealt anew during the run: to deal them again
+                    ranks["partition"] = dict(zip(("cells", "ranks"), partition))
                 f.attrs.update(attrs, sha256=_digest(attrs, ranks))  # the state, and apart ...
                 _write_tree(f, {**ranks, "history": history})
                 f["history"].attrs["sha256"] = _digest({}, history)  # ... what the run recorded
@@ -156,7 +160,8 @@ def read(path, comm) -> dict:
 
     On another number of ranks than the checkpoint's, rank 0 gets every particle and the
     sinks' and the dissipation's totals, the others none, and every rank all nodes with their
-    ``R_changes``: :func:`restore` then hands the particles to their owners.
+    ``R_changes``: :func:`restore` then hands the particles to their owners. On the same
+    number, after a run that dealt its cells anew, rank 0 also gets their ``partition``.
 
     Raises:
         CheckpointError: missing, unreadable or corrupted file (its checksum or its values), or
@@ -183,6 +188,8 @@ def read(path, comm) -> dict:
             if written != comm.size:
                 whole = _merged(ranks)
                 ranks = [whole, *[_emptied(whole) for _ in range(comm.size - 1)]]
+            elif "partition" in tree:
+                ranks[0] = {**ranks[0], "partition": tree["partition"]}
             parts = [{"attrs": attrs, "history": history, **part} for part in ranks]
         except CheckpointError as e:
             error = str(e)
@@ -276,8 +283,14 @@ def restore(sim, data: dict) -> None:
     s = sim.solver
     if not s.comm.allreduce(s.state.fits(data), MPI.LAND):  # on every rank
         raise CheckpointError("the checkpoint does not fit the scenario (particle fields or sinks differ)")
+    resharded = data.get("resharded", False)
+    if data["attrs"].get("repartitioned", False) and not resharded:  # the cells as they were dealt
+        partition = data.get("partition")
+        if partition is None:
+            partition = {"cells": np.zeros((0, s.grid.gdim + 1), np.int64), "ranks": np.zeros(0, np.int32)}
+        s.deal(partition["cells"], partition["ranks"])
     owned = s.grid.node_x[: s.grid.num_owned_nodes]
-    if data.get("resharded", False):
+    if resharded:
         data = {**data, "R_changes": _owned_rows(data, owned, s.grid.gdim, s.comm)}
     elif not s.comm.allreduce(np.array_equal(data["nodes"], owned), MPI.LAND):  # on every rank
         raise CheckpointError(
@@ -301,9 +314,11 @@ def restore(sim, data: dict) -> None:
     for k in data["attrs"]["applied"]:
         sim.apply_event(int(k))  # walls and damping as they were
     s.state.restore(data["attrs"], data)
-    if data.get("resharded", False):  # rank 0 holds every particle: to the owners of their cells
+    if resharded:  # rank 0 holds every particle: to the owners of their cells, then balanced
         P = s.particles
         migrate(s.grid, P, locate(s.grid, P.x, np.full(len(P), -1, dtype=np.int32))[0])
+        if s.comm.size > 1 and s.imbalance() > s.model.options.rebalance:
+            s.rebalance()
 
 
 def _owned_rows(data: dict, owned: np.ndarray, gdim: int, comm) -> np.ndarray:

@@ -191,28 +191,31 @@ class Output:
         self._write_grid(solver)
 
     def _grid_mesh(self, grid):
-        """The static mesh, gathered once: owned nodes' P1 dofs, and on rank 0 the sorted mesh."""
+        """The static mesh, gathered: owned nodes' P1 dofs, and on rank 0 the mesh in input order.
+
+        The nodes are numbered as in the mesh's input, which no partition changes: after a
+        :meth:`~dolfin_mpm.explicit.solver.Solver.rebalance` the mesh written stays the same.
+        """
         msh = grid.mesh
         geom_dofs = compat.geometry_dofmap(msh)
         # Values at geometry nodes (P1: geometry node i of a cell carries dof i of the cell).
         node_of_geom = np.empty(msh.geometry.x.shape[0], dtype=np.int64)
         node_of_geom[geom_dofs] = grid.cell_dofs
-        gmap = msh.geometry.index_map()
-        owned = gmap.size_local
-        global_nodes = gmap.local_to_global(np.arange(owned + gmap.num_ghosts, dtype=np.int32))
-        cells = _gather(self.comm, global_nodes[geom_dofs[: grid.num_owned_cells]])
-        ids = _gather(self.comm, global_nodes[:owned])
+        owned = msh.geometry.index_map().size_local
+        inputs = np.asarray(msh.geometry.input_global_indices, dtype=np.int64)
+        cells = _gather(self.comm, inputs[geom_dofs[: grid.num_owned_cells]])
+        ids = _gather(self.comm, inputs[:owned])
         x = _gather(self.comm, msh.geometry.x[:owned])
         if self.comm.rank != 0:
-            return node_of_geom[:owned], None, None, None
+            return grid, node_of_geom[:owned], None, None, None
         order = np.argsort(ids)
-        return node_of_geom[:owned], x[order], cells.astype(np.int64), order
+        return grid, node_of_geom[:owned], x[order], np.searchsorted(ids[order], cells), order
 
     def _write_grid(self, solver) -> None:
         grid = solver.grid
-        if self._mesh is None:
+        if self._mesh is None or self._mesh[0] is not grid:  # a rebalance brings a new grid
             self._mesh = self._grid_mesh(grid)
-        nodes, points, cells, order = self._mesh
+        _, nodes, points, cells, order = self._mesh
         fields = {"mass": grid.mass.x.array[nodes]}
         for f in (grid.momentum, grid.velocity, grid.f_int, grid.f_ext, grid.f_contact):
             fields[f.name] = _pad3(f.x.array.reshape(-1, grid.gdim)[nodes])
