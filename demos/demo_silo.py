@@ -22,8 +22,8 @@ map time), so studies are resumed rather than repeated:
     python demos/demo_silo.py --study all --report docs/silo.md
 
 Runs and studies also run on several MPI ranks (``mpirun -n 2 python demos/demo_silo.py
---h 0.0025``); the cells go to the ranks by the fill at the start and are dealt anew by the
-particles as the silo empties, whenever a rank holds 5 % more than the mean.
+--h 0.0025``); the cells go to the ranks in vertical strips of equal fill, dealt anew by the
+particles as the silo empties whenever a rank holds 5 % more than the mean.
 """
 
 import argparse
@@ -109,10 +109,12 @@ def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, he
         edge_cell: cells of this size [m] within ``edge_zone`` [m] of the outlet edges
             (across and up from the bottom), ``h`` elsewhere; ``None``: ``h`` everywhere.
         comm: the communicator the mesh is partitioned over.
-        partition: on several ranks, :data:`PARTITIONS`: ``"rebalance"`` deals the cells by
-            the fill at the start and anew by the particles whenever the largest rank holds
-            more than ``rebalance`` times the mean (checked every 20 steps); ``"strips"``
-            keeps vertical strips of equal fill; ``"dolfinx"`` keeps DOLFINx's partition.
+        partition: on several ranks, :data:`PARTITIONS`: ``"strips"`` keeps vertical strips
+            of equal fill; ``"rebalance"`` starts so and deals the strips anew by the
+            particles whenever the largest rank holds more than ``rebalance`` times the mean
+            (checked every 20 steps); ``"dolfinx"`` keeps DOLFINx's partition. Cuts across
+            the flow cost more than an imbalance: particles cross them every step, and each
+            crossing rebuilds the non-local halo and pair lists (``docs/parallel.md``).
 
     Returns:
         ``(solver, gate)``; the gate is a boundary condition in ``solver.bcs``.
@@ -133,11 +135,11 @@ def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, he
     x0, x1 = 0.5 * (width - outlet), 0.5 * (width + outlet)  # outlet edges
     drop = 0.5 * outlet  # free fall below the outlet down to the catch line
     rows_below = math.ceil(drop / h) + 1
-    # On several ranks the cells go to them by the fill. Vertical strips: the flow is symmetric
-    # about the axis, so on two ranks the halves keep equal shares as it empties (on more, the
-    # inner strips empty faster); rebalanced, any cuts, dealt anew as the fill moves.
+    # On several ranks the cells go to them in vertical strips of equal fill: the flow is
+    # symmetric about the axis, so on two ranks the halves keep equal shares as it empties (on
+    # more, the inner strips empty faster, and a rebalance deals the strips anew).
     fill = lambda y: (y > 0.0) & (y < height)  # noqa: E731
-    axes = (0,) if partition == "strips" else None
+    axes = (0,)
     corners = [
         (-shift * h, -rows_below * h),
         (width + (shift > 0) * (1 - shift) * h, height + h),
@@ -184,6 +186,7 @@ def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, he
         volumetric=volumetric, stress=stress, quadrature=quadrature,
         rebalance=rebalance if partition == "rebalance" else np.inf,
     )  # fmt: skip
+    solver.partition_axes = axes
     return solver, gate
 
 

@@ -168,11 +168,14 @@ def test_silo_on_all_ranks_equals_the_serial_run(partition, law, quadrature):
     parallel = silo_run(comm, partition=partition, law=law, quadrature=quadrature)
     serial = serial_silo_run(law, quadrature)
     assert parallel["discharged"] > 0.0
-    if partition == "strips" and comm.size == 2:  # cut at the axis of a symmetric flow: (almost) no crossing
+    if partition != "dolfinx" and comm.size == 2:  # cut at the axis of a symmetric flow: (almost) no crossing
         assert parallel["migrated"] < 0.01 * parallel["particles"]
     else:
         assert comm.size == 1 or parallel["migrated"] > 0
-    assert (parallel["repartitions"] > 0) == (partition == "rebalance" and comm.size > 1)
+    if partition == "rebalance" and comm.size > 2:  # the inner strips empty faster: dealt anew
+        assert parallel["repartitions"] > 0
+    elif partition != "rebalance":
+        assert parallel["repartitions"] == 0
     assert parallel["particles"] == serial["particles"]
     assert parallel["iterations"] == serial["iterations"]
     for key in ("discharged", "kinetic", "e_vp_bar_max"):
@@ -290,17 +293,23 @@ def test_run_with_progress_on_all_ranks(capsys):
         assert out == ""
 
 
-def test_resume_on_all_ranks_ends_where_the_uninterrupted_run_ends(tmp_path):
-    """Each rank's checkpoint carries its halo and pair list: the resumed run is bit-identical."""
+def run_and_resume(tmp_path, text: str) -> Path:
+    """``text`` run in ``reference`` to its end, and in ``run`` to 0.023 s, then resumed to 0.04 s."""
     folder = comm.bcast(tmp_path, root=0)
     scenario = folder / "fall.toml"
     if comm.rank == 0:
-        scenario.write_text(SCENARIO)
+        scenario.write_text(text)
     comm.Barrier()
     quiet = ["--quiet", "--output"]
     assert main(["run", str(scenario), *quiet, str(folder / "reference")]) == 0
     assert main(["run", str(scenario), *quiet, str(folder / "run"), "--set", "time.end=0.023"]) == 0
     assert main(["resume", str(folder / "run"), "--quiet", "--set", "time.end=0.04"]) == 0
+    return folder
+
+
+def test_resume_on_all_ranks_ends_where_the_uninterrupted_run_ends(tmp_path):
+    """Each rank's checkpoint carries its halo and pair list: the resumed run is bit-identical."""
+    folder = run_and_resume(tmp_path, SCENARIO)
     if comm.rank == 0:
         reference, resumed = (checkpoint_state(folder / f / "checkpoint.h5") for f in ("reference", "run"))
         assert reference["attrs/ranks"] == comm.size
@@ -425,18 +434,26 @@ def test_dealing_the_cells_anew_keeps_the_nodal_conditions_on_their_nodes():
     assert np.array_equal(*on)  # the same nodes over all ranks
 
 
-def test_rebalancing_evens_out_the_particles_and_changes_no_result():
-    """A block in a corner of DOLFINx's partition: dealt by the particles, the ranks hold equal
-    shares, and the run goes on as on one rank."""
+@pytest.mark.parametrize("dim", [2, 3])
+def test_rebalancing_evens_out_the_particles_and_changes_no_result(dim):
+    """A block low in a mesh cut into layers of equal cell count: dealt by the particles, the
+    ranks hold equal shares, and the run goes on as on one rank."""
+    up = dim - 1
+    cells = lambda c: np.ones(c.shape[1])  # noqa: E731
 
     def run(comm, balance: bool):
-        msh = mesh.create_rectangle(comm, [np.zeros(2), np.ones(2)], [12, 12], mesh.CellType.triangle)
+        if dim == 2:
+            msh = dm.partition.create_rectangle(comm, [(0, 0), (1, 1)], (12, 12), cells, axes=(up,))
+        else:
+            msh = dm.partition.create_box(comm, [(0, 0, 0), (1, 1, 1)], (8, 8, 8), cells, axes=(up,))
         grid = dm.Grid(msh)
         mat = dm.DruckerPragerViscoplastic(E=1e6, nu=0.3, rho=1500.0, phi=30.0, gamma=1e3)
-        P = dm.seed(grid, mat, ppc=4, where=lambda x: (x[0] < 0.5) & (x[1] > 0.2) & (x[1] < 0.6))
-        floor = dm.FixedBC(grid.nodes_where(lambda x: np.isclose(x[1], 0.0)))
-        solver = dm.Solver(grid, P, mat, bcs=[floor], gravity=(0.0, -9.81), dt=2e-4,
-                           averaging=dm.NonlocalAverage(radius=0.1))  # fmt: skip
+        P = dm.seed(grid, mat, ppc=4, where=lambda x: (x[0] < 0.5) & (x[up] > 0.2) & (x[up] < 0.6))
+        floor = dm.FixedBC(grid.nodes_where(lambda x: np.isclose(x[up], 0.0)))
+        g = np.zeros(dim)
+        g[up] = -9.81
+        solver = dm.Solver(grid, P, mat, bcs=[floor], gravity=g, dt=2e-4,
+                           averaging=dm.NonlocalAverage(radius=0.1 if dim == 2 else 0.15))  # fmt: skip
         solver.run_until(0.0, steps=20)
         before = solver.imbalance()
         changed = solver.rebalance() if balance else False
@@ -448,7 +465,7 @@ def test_rebalancing_evens_out_the_particles_and_changes_no_result():
     *_, p1, e1 = run(MPI.COMM_SELF, False)
     assert changed == (comm.size > 1)
     if comm.size > 1:
-        assert before > 1.3, "DOLFINx's partition should leave the block on few ranks"
+        assert before > 1.4, "the layers should leave the block on few ranks"
         assert after <= 1.1, (before, after)
     assert p == pytest.approx(p1, rel=1e-10, abs=1e-14)
     for k in ("kinetic", "strain", "dissipated"):
@@ -463,19 +480,11 @@ def test_a_rebalanced_run_resumes_bit_identical_and_equals_the_serial_run(tmp_pa
     from dolfin_mpm.app import scenario
     from dolfin_mpm.app.runner import Runner
 
-    folder = comm.bcast(tmp_path, root=0)
-    path = folder / "fall.toml"
-    if comm.rank == 0:
-        path.write_text(REBALANCED)
-    comm.Barrier()
-    quiet = ["--quiet", "--output"]
-    assert main(["run", str(path), *quiet, str(folder / "reference")]) == 0
-    assert main(["run", str(path), *quiet, str(folder / "run"), "--set", "time.end=0.023"]) == 0
-    assert main(["resume", str(folder / "run"), "--quiet", "--set", "time.end=0.04"]) == 0
+    folder = run_and_resume(tmp_path, REBALANCED)
     if comm.rank == 0:
         one = folder / "one"
         one.mkdir()
-        Runner(scenario.build(scenario.load(path), MPI.COMM_SELF), one, progress=False).run()
+        Runner(scenario.build(scenario.load(folder / "fall.toml"), MPI.COMM_SELF), one, progress=False).run()
         reference, resumed = (checkpoint_state(folder / f / "checkpoint.h5") for f in ("reference", "run"))
         assert bool(reference["attrs/repartitioned"]) == (comm.size > 1)
         assert reference.keys() == resumed.keys()

@@ -1068,6 +1068,8 @@ def build(cfg: dict, comm=MPI.COMM_WORLD) -> Simulation:
         )  # fmt: skip
     except ValueError as e:
         raise ScenarioError([f"solver: {e}"]) from None
+    if cfg["mesh"].get("partition") is not None:  # a rebalance cuts as the start did
+        solver.partition_axes = tuple("xyz".index(a) for a in cfg["mesh"]["partition"])
     interval = cfg["output"]["interval"]
     if s["dt"] is None and 0.0 < solver.dt < INF and interval / solver.dt < MAX_STEPS:
         solver.fit_step(interval)  # outputs at exact multiples of the interval

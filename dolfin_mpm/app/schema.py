@@ -49,8 +49,8 @@ DESCRIPTIONS = {
     "mesh.upper": "upper corner of the generated mesh [m], above mesh.lower in every component",
     "mesh.cells": "cells along each axis (whole numbers)",
     "mesh.diagonal": "how each square of the rectangle is cut into triangles",
-    "mesh.partition": 'axes the ranks\' cuts go across, in turn ("x": strips across x; default: the '
-    "longest extent of each part)",
+    "mesh.partition": 'axes the ranks\' cuts go across, in turn, at the start and in each rebalance ("x": '
+    "strips across x; default: the longest extent of each part)",
     "materials": "the materials, one table per name, which bodies refer to",
     "materials.<name>.model": "the constitutive model",
     "materials.<name>.E": "Young's modulus [Pa]",

@@ -39,6 +39,7 @@ class State:
         migrated: particles moved between ranks since the start (a diagnostic, not stored).
         repartitions: the times the cells were dealt to the ranks anew since the start (a
             diagnostic, not stored).
+        balanced: the particle imbalance the last repartition left (1 before any).
         wall_stops: particle moves cut short at a rigid wall since the start (a diagnostic,
             not stored).
         reactions: the force [N] of each rigid wall on the material in the last step, on this
@@ -57,14 +58,16 @@ class State:
     dissipated: float = 0.0
     migrated: int = 0
     repartitions: int = 0
+    balanced: float = 1.0
     wall_stops: int = 0
     reactions: dict = field(default_factory=dict)
 
     # -- serialisation -------------------------------------------------------------------------
     def scalars(self) -> dict:
-        """Time, step, time step and loop counters: the same on every rank."""
+        """Time, step, time step, loop counters, the last repartition's imbalance: alike on all ranks."""
         counters = np.array([self.fixed_point[k] for k in FIXED_POINT_STATISTICS], dtype=np.int64)
-        return {"time": self.time, "step": self.step, "dt": self.dt, "fixed_point": counters}
+        return {"time": self.time, "step": self.step, "dt": self.dt, "fixed_point": counters,
+                "balanced": self.balanced}  # fmt: skip
 
     def tree(self, owned: int) -> dict:
         """The arrays of this rank as nested dicts (``owned``: owned nodes * gdim)."""
@@ -112,4 +115,5 @@ class State:
         self.R_changes = list(np.array(tree["R_changes"], dtype=np.float64))
         self.dissipated = float(tree.get("dissipated", 0.0))
         self.time, self.step, self.dt = float(scalars["time"]), int(scalars["step"]), float(scalars["dt"])
+        self.balanced = float(scalars.get("balanced", 1.0))  # not in the checkpoints of earlier versions
         self.fixed_point.update(zip(FIXED_POINT_STATISTICS, (int(v) for v in scalars["fixed_point"])))

@@ -317,6 +317,7 @@ def restore(sim, data: dict) -> None:
     if resharded:  # rank 0 holds every particle: to the owners of their cells, then balanced
         P = s.particles
         migrate(s.grid, P, locate(s.grid, P.x, np.full(len(P), -1, dtype=np.int32))[0])
+        s.state.balanced = 1.0  # another number of ranks: what its repartitions left does not hold
         if s.comm.size > 1 and s.imbalance() > s.model.options.rebalance:
             s.rebalance()
 
