@@ -407,7 +407,7 @@ def test_a_scenario_starts_with_its_particles_balanced_over_the_ranks():
 
 def test_dealing_the_cells_anew_keeps_the_nodal_conditions_on_their_nodes():
     """A repartitioned grid numbers its nodes anew: each condition keeps the same points and values."""
-    from dolfin_mpm.parallel.rebalance import deal, node_inputs, renumber
+    from dolfin_mpm.parallel.rebalance import deal, renumber
 
     grid = dm.Grid(mesh.create_rectangle(comm, [np.zeros(2), np.ones(2)], [6, 5], mesh.CellType.triangle))
     floor = dm.FixedBC(grid.nodes_where(lambda x: np.isclose(x[1], 0.0)))
@@ -428,7 +428,7 @@ def test_dealing_the_cells_anew_keeps_the_nodal_conditions_on_their_nodes():
     assert np.allclose(lid.velocity[:, 0], new.node_x[lid.nodes, 0], rtol=0.0, atol=1e-15)
     assert np.all(np.isnan(lid.velocity[:, 1]))
     on = [
-        np.unique(np.concatenate(comm.allgather(node_inputs(g)[n])))
+        np.unique(np.concatenate(comm.allgather(g.node_inputs()[n])))
         for g, n in ((new, lid.nodes), (grid, top))
     ]
     assert np.array_equal(*on)  # the same nodes over all ranks

@@ -102,6 +102,16 @@ class Grid:
         self.diameter = float(np.sqrt((edges**2).sum(axis=-1)).max()) if self.num_cells else 0.0
         self.tree = compat.bounding_box_tree(msh)
 
+    def node_inputs(self) -> np.ndarray:
+        """Each node's number in the mesh's input (a file's point), the same on every partition.
+
+        ``shape=(num_nodes,)``; P1: a cell's geometry node i carries its dof i.
+        """
+        out = np.empty(self.num_nodes, dtype=np.int64)
+        inputs = np.asarray(self.mesh.geometry.input_global_indices, dtype=np.int64)
+        out[self.cell_dofs] = inputs[compat.geometry_dofmap(self.mesh)]
+        return out
+
     def repartitioned(self, msh, partition: tuple[np.ndarray, np.ndarray]) -> "Grid":
         """The grid of ``msh``, this grid's mesh dealt to the ranks anew, on this grid's ``comm``.
 

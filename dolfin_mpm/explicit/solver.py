@@ -201,10 +201,8 @@ class Solver:
         self.timer.start()
         grid, owner = repartition(self.grid, self.particles, self.partition_axes)
         if grid is not None:
-            self.state.R_changes = move_to(
-                self.grid, grid, owner, self.particles, self.bcs, self.state.R_changes
-            )
-            self.model.grid = grid
+            self.state.R_changes = move_to(self.grid, grid, owner, self.particles, self.state.R_changes)
+            self._use(grid)
             self.state.repartitions += 1
         self.timer.lap("rebalance")
         self.state.balanced = self.imbalance()
@@ -216,7 +214,10 @@ class Solver:
         For a checkpoint's partition, before its state is restored: the nodal boundary
         conditions follow, the particles not (the checkpoint brings their own).
         """
-        grid = deal(self.grid, cells, ranks)
+        self._use(deal(self.grid, cells, ranks))
+
+    def _use(self, grid: Grid) -> None:
+        """Run on ``grid``, the same mesh dealt anew: the nodal boundary conditions take its nodes."""
         renumber(self.grid, grid, self.bcs)
         self.model.grid = grid
 

@@ -63,11 +63,7 @@ def read_groups(comm, path, grid: Grid) -> PhysicalGroups:
     cell_tags, nodes_of, names = comm.bcast((cell_tags, nodes_of, names), root=0)
     original = np.asarray(msh.topology.original_cell_index, dtype=np.int64)
     local = cell_tags[original] if len(cell_tags) else np.full(len(original), -1, dtype=np.int32)
-    # each grid node's point in the file (P1: a cell's geometry node i carries its dof i)
-    point_of = np.empty(grid.num_nodes, dtype=np.int64)
-    point_of[grid.cell_dofs] = np.asarray(msh.geometry.input_global_indices, dtype=np.int64)[
-        compat.geometry_dofmap(msh)
-    ]
+    point_of = grid.node_inputs()  # each grid node's point in the file
     node_tags = {tag: np.flatnonzero(np.isin(point_of, points)) for tag, points in nodes_of.items()}
     # names of lower-dimensional groups under -1: a wall's tag is any of them
     names = {(gdim if dim == gdim else -1, tag): name for (dim, tag), name in names.items()}

@@ -4,8 +4,9 @@
 deals the cells by :func:`~dolfin_mpm.parallel.partition.bisection` of each cell's particle
 count, and has DOLFINx create the mesh on that partition (its partitioner hook, as at the
 start; :func:`deal`). :func:`move_to` then hands every particle, with its whole state, to the
-new owner of its cell, and carries what is numbered by nodes (the nodal boundary conditions'
-nodes and values, the fixed-point loop's changes of ``R``) over by the nodes' input numbers.
+new owner of its cell, and carries the grid's nodal fields and the fixed-point loop's changes of
+``R`` over by the nodes' input numbers; :func:`renumber` does so for the nodal boundary
+conditions' nodes and values.
 The non-local average's halo and pair list see the arrivals and are built anew at the next
 step.
 
@@ -15,22 +16,14 @@ Everything here is collective over the grid's communicator.
 import numpy as np
 
 from dolfin_mpm.core import compat
+from dolfin_mpm.core.boundary import BoundaryCondition
 from dolfin_mpm.core.grid import Grid
 from dolfin_mpm.core.locate import locate
 from dolfin_mpm.core.particles import Particles
 from dolfin_mpm.parallel.migration import exchange, migrate
 from dolfin_mpm.parallel.partition import bisection, destinations
 
-__all__ = ["deal", "move_to", "node_inputs", "renumber", "repartition"]
-
-
-def node_inputs(grid: Grid) -> np.ndarray:
-    """Each local node's number in the mesh's input, the same on every partition, ``shape=(num_nodes,)``."""
-    msh = grid.mesh
-    inputs = np.asarray(msh.geometry.input_global_indices, dtype=np.int64)
-    out = np.empty(grid.num_nodes, dtype=np.int64)
-    out[grid.cell_dofs] = inputs[compat.geometry_dofmap(msh)]
-    return out
+__all__ = ["NODAL_FIELDS", "deal", "move_to", "renumber", "repartition"]
 
 
 def deal(grid: Grid, cells: np.ndarray, ranks: np.ndarray) -> Grid:
@@ -91,9 +84,9 @@ def repartition(grid: Grid, particles: Particles, axes=None) -> tuple[Grid | Non
 def renumber(old: Grid, new: Grid, bcs: list) -> None:
     """Give the nodal boundary conditions in ``bcs`` their nodes (and values) on ``new``, in place."""
     comm = old.comm
-    was, now = node_inputs(old), node_inputs(new)
+    was, now = old.node_inputs(), new.node_inputs()
     for bc in bcs:
-        if hasattr(bc, "renumber"):
+        if isinstance(bc, BoundaryCondition):  # rigid walls are geometry: nothing to renumber
             keys = np.concatenate(comm.allgather(was[bc.nodes]))
             values = {k: np.concatenate(comm.allgather(v)) for k, v in bc.node_values().items()}
             keys, first = np.unique(keys, return_index=True)
@@ -106,15 +99,12 @@ def renumber(old: Grid, new: Grid, bcs: list) -> None:
 NODAL_FIELDS = ("mass", "momentum", "f_ext", "f_int", "f_contact", "velocity", "acceleration")
 
 
-def move_to(
-    old: Grid, new: Grid, owner: np.ndarray, particles: Particles, bcs: list, R_changes: list
-) -> list:
+def move_to(old: Grid, new: Grid, owner: np.ndarray, particles: Particles, R_changes: list) -> list:
     """Carry a run's state from grid ``old`` to grid ``new`` of :func:`repartition`.
 
     The particles go to ``owner`` of their cells, then to the owners of the cells they are in
-    on ``new``; the nodal boundary conditions in ``bcs`` take their nodes on ``new``
-    (:func:`renumber`); the last step's :data:`NODAL_FIELDS` are copied node for node;
-    ``R_changes`` (each ``shape=(owned nodes * gdim,)`` of ``old``) are returned for ``new``'s.
+    on ``new``; the last step's :data:`NODAL_FIELDS` are copied node for node; ``R_changes``
+    (each ``shape=(owned nodes * gdim,)`` of ``old``) are returned for ``new``'s.
     """
     comm = old.comm
     cell = particles.cell
@@ -123,7 +113,6 @@ def move_to(
     dest[known] = owner[cell[known]]
     exchange(comm, particles, dest)
     migrate(new, particles, locate(new, particles.x, np.full(len(particles), -1, dtype=np.int32))[0])
-    renumber(old, new, bcs)
     rows = _owned_rows(old, new)
     for name in NODAL_FIELDS:
         was, now = getattr(old, name), getattr(new, name)
@@ -138,6 +127,6 @@ def move_to(
 
 def _owned_rows(old: Grid, new: Grid) -> np.ndarray:
     """Where ``new``'s owned nodes sit among all ranks' owned nodes of ``old``, in rank order."""
-    was = np.concatenate(old.comm.allgather(node_inputs(old)[: old.num_owned_nodes]))
+    was = np.concatenate(old.comm.allgather(old.node_inputs()[: old.num_owned_nodes]))
     order = np.argsort(was)
-    return order[np.searchsorted(was, node_inputs(new)[: new.num_owned_nodes], sorter=order)]
+    return order[np.searchsorted(was, new.node_inputs()[: new.num_owned_nodes], sorter=order)]
