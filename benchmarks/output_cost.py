@@ -1,14 +1,12 @@
-"""Cost of the XDMF/HDF5 output against the step it interrupts: gathering to rank 0 or not.
+"""Cost of the XDMF/HDF5 output under MPI, by layout: gathered to rank 0, collective, per rank.
 
-The output gathers every rank's particles to rank 0, which alone writes (`dolfin_mpm.io.xdmf`). This
-times one `Output.write` of the silo (``--h``, 2 mm: ~1.2e5 particles; particles and grid) on
-as many ranks as the script is started with, beside one explicit step, and reports how many
-steps one output costs. With h5py built for MPI it also times the alternative, each rank
-writing its own slice of the same particle fields into one file collectively
-(``driver="mpio"``; without the grid and the XDMF file). Debian's `python3-h5py` and PyPI's
-h5py wheels are serial builds, so that part is skipped there (on Debian, `apt-get install
-python3-h5py-mpi` adds the MPI build, which h5py then loads under `mpirun`).
-Writes JSON beside the script (one entry per rank count):
+Times one `Output.write` (particles and grid) of the silo (``--h``: 2 mm is ~1.2e5 particles,
+0.625 mm ~1.2e6) in each layout this h5py can write (`dolfin_mpm.io.xdmf.LAYOUTS`; the
+collective one needs h5py built with MPI: on Debian `apt-get install python3-h5py-mpi`, which
+h5py loads under `mpirun`), beside one explicit step, and rank 0's peak memory during the write
+beyond what it held before (numpy's buffers, through `tracemalloc`). The gathered write holds
+every rank's particles on rank 0; the other two hold rank 0's own. Medians over ``--writes``.
+Writes JSON beside the script, one entry per rank count and particle count:
 
     mpirun -n 2 python benchmarks/output_cost.py [--h 0.002] [--writes 5]
 """
@@ -19,6 +17,7 @@ import shutil
 import sys
 import tempfile
 import time
+import tracemalloc
 from pathlib import Path
 
 import dolfin_mpm as dm  # first: loads DOLFINx's libraries
@@ -27,6 +26,8 @@ import dolfin_mpm as dm  # first: loads DOLFINx's libraries
 import h5py
 import numpy as np
 from mpi4py import MPI
+
+from dolfin_mpm.io import xdmf
 
 sys.path.insert(0, str(Path(__file__).parents[1] / "demos"))
 import demo_silo
@@ -43,15 +44,32 @@ def timed(comm: MPI.Comm, action, repeats: int) -> float:
     return float(np.median(times))
 
 
-def collective_write(comm: MPI.Comm, path: Path, arrays: dict[str, np.ndarray]) -> None:
-    """Each rank's rows of ``arrays`` into one dataset per array, written collectively."""
-    with h5py.File(path, "w", driver="mpio", comm=comm) as f:
-        for name, a in arrays.items():
-            counts = comm.allgather(len(a))
-            start = sum(counts[: comm.rank])
-            dset = f.create_dataset(name, (sum(counts), *a.shape[1:]), dtype=a.dtype)
-            with dset.collective:
-                dset[start : start + len(a)] = a
+def peak_bytes(comm: MPI.Comm, action) -> int:
+    """The peak of what ``action()`` (collective) allocates on rank 0 beyond what it held [bytes]."""
+    if comm.rank == 0:
+        tracemalloc.start()
+        before, _ = tracemalloc.get_traced_memory()
+    action()
+    peak = 0
+    if comm.rank == 0:
+        peak = tracemalloc.get_traced_memory()[1] - before
+        tracemalloc.stop()
+    return comm.bcast(peak, root=0)
+
+
+def measure(comm: MPI.Comm, solver, folder: Path, layout: str, writes: int) -> dict:
+    """One layout: write time, rank 0's peak memory in a write, bytes on disk per write."""
+    with dm.Output(folder / layout, comm, layout=layout) as out:
+
+        def write_again():
+            out.last_time = None  # the same state again: not skipped as already written
+            out.write(solver)
+
+        seconds = timed(comm, write_again, writes)
+        peak = peak_bytes(comm, write_again)
+    files = sorted((folder / layout).glob("*.h5")) if comm.rank == 0 else []
+    size = sum(f.stat().st_size for f in files) / (writes + 1)
+    return {"write_s": seconds, "rank0_peak_bytes": peak, "bytes_per_write": comm.bcast(size, root=0)}
 
 
 def main():
@@ -63,46 +81,29 @@ def main():
     comm = MPI.COMM_WORLD
     solver, _ = demo_silo.build(h=args.h, radius=2 * args.h, comm=comm)
     solver.step()
-    step = timed(comm, solver.step, 5)
+    step = timed(comm, solver.step, 3)
     folder = Path(tempfile.mkdtemp()) if comm.rank == 0 else None
     folder = comm.bcast(folder)
-    with dm.Output(folder / "gathered", comm) as out:
-
-        def write_again():
-            out.last_time = None  # the same state again: not skipped as already written
-            out.write(solver)
-
-        write = timed(comm, write_again, args.writes)
-    result = {
-        "ranks": comm.size,
-        "particles": solver.num_particles(),
-        "step_s": step,
-        "gathered_write_s": write,
-        "h5_bytes_per_write": (folder / "gathered" / "particles.h5").stat().st_size / args.writes
-        if comm.rank == 0
-        else 0.0,
-    }
-    if h5py.get_config().mpi:
-        P = solver.particles
-        arrays = {"x": P.x, **dm.io.xdmf.particle_fields(P)}  # what the gathered output writes
-        result["collective_particle_write_s"] = timed(
-            comm, lambda: collective_write(comm, folder / "collective.h5", arrays), args.writes
+    layouts = [layout for layout in xdmf.LAYOUTS if layout != "collective" or h5py.get_config().mpi]
+    n = solver.num_particles()
+    result = {"ranks": comm.size, "particles": n, "step_s": step}
+    result |= {layout: measure(comm, solver, folder, layout, args.writes) for layout in layouts}
+    if comm.rank != 0:
+        return
+    shutil.rmtree(folder)
+    table = json.loads(args.json.read_text()) if args.json.exists() else {}
+    table[f"{comm.size} ranks, {n} particles"] = result
+    args.json.write_text(json.dumps(table, indent=2))
+    print(f"{comm.size} rank(s), {n} particles; one step {1e3 * step:.1f} ms; {args.writes} writes, medians:")
+    print(f"  {'layout':<11} {'write [ms]':>10} {'= steps':>8} {'rank 0 peak [MB]':>17} {'B/particle':>11}")
+    for layout in layouts:
+        r = result[layout]
+        print(
+            f"  {layout:<11} {1e3 * r['write_s']:>10.1f} {r['write_s'] / step:>8.2f} "
+            f"{r['rank0_peak_bytes'] / 1e6:>17.1f} {r['rank0_peak_bytes'] / n:>11.1f}"
         )
-    if comm.rank == 0:
-        shutil.rmtree(folder)
-        table = json.loads(args.json.read_text()) if args.json.exists() else {}
-        table[str(comm.size)] = result
-        args.json.write_text(json.dumps(table, indent=2))
-        r = result
-        size = r["h5_bytes_per_write"] / 1e6
-        print(f"{comm.size} rank(s), {r['particles']} particles, medians:")
-        print(f"  one step {1e3 * step:.1f} ms; one output (gathered to rank 0, particles and grid) "
-              f"{1e3 * write:.1f} ms = {write / step:.2f} steps; {size:.1f} MB of particle data")  # fmt: skip
-        if "collective_particle_write_s" in r:
-            collective = 1e3 * r["collective_particle_write_s"]
-            print(f"  particles written collectively (h5py-mpi): {collective:.1f} ms")
-        else:
-            print("  h5py here is a serial build: the collective write is not measured")
+    if "collective" not in layouts:
+        print("  h5py here is a serial build: the collective layout is not measured")
 
 
 if __name__ == "__main__":

@@ -4,7 +4,7 @@
 # when everything is already there.
 set -euo pipefail
 VENV=${1:-.venv}
-PKGS="python3-dolfinx-real openmpi-bin python3-scipy python3-h5py python3-meshio python3-matplotlib python3-pytest python3-hypothesis python3-venv python3-pip"
+PKGS="python3-dolfinx-real openmpi-bin python3-scipy python3-h5py python3-h5py-mpi python3-meshio python3-matplotlib python3-pytest python3-hypothesis python3-venv python3-pip"
 
 bash "$(dirname "$0")/debian-packages.sh" $PKGS
 

@@ -55,3 +55,18 @@ def test_mpi_scaling_records_its_run(tmp_path, monkeypatch, capsys):
     assert r["ms_per_step"] > 0.0 and r["particles"] == r["particles_per_rank_max"] > 0
     assert r["repartitions"] == 0 and r["rebalance_ms_per_step"] == 0.0  # one rank: nothing to deal
     assert "1 rank(s)" in capsys.readouterr().out
+
+
+def test_output_cost_measures_each_layout(tmp_path, monkeypatch, capsys):
+    output_cost = load("output_cost")
+    out = tmp_path / "output_cost.json"
+    monkeypatch.setattr(sys, "argv", ["output_cost", "--h", "0.02", "--writes", "2", "--json", str(out)])
+    output_cost.main()
+    (r,) = json.loads(out.read_text()).values()
+    assert r["ranks"] == 1 and r["particles"] > 0 and r["step_s"] > 0.0
+    for layout in ("gather", "per-rank"):  # the collective one needs h5py with MPI
+        m = r[layout]
+        assert m["write_s"] > 0.0
+        assert m["bytes_per_write"] > r["particles"] * 8 * (3 + 3 + 9)  # x, velocity, stress at least
+        assert m["rank0_peak_bytes"] > r["particles"] * 8 * 9  # the stress copied for the file
+    assert "per-rank" in capsys.readouterr().out

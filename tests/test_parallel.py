@@ -479,6 +479,7 @@ def test_a_rebalanced_run_resumes_bit_identical_and_equals_the_serial_run(tmp_pa
     """The checkpoint keeps how the cells were dealt: the resumed run makes the same mesh again."""
     from dolfin_mpm.app import scenario
     from dolfin_mpm.app.runner import Runner
+    from dolfin_mpm.io import xdmf
 
     folder = run_and_resume(tmp_path, REBALANCED)
     if comm.rank == 0:
@@ -494,11 +495,10 @@ def test_a_rebalanced_run_resumes_bit_identical_and_equals_the_serial_run(tmp_pa
             assert ("partition" in f) == (comm.size > 1)
         last = {f: list(csv.DictReader(open(folder / f / "history.csv")))[-1] for f in ("reference", "one")}
         assert float(last["reference"]["discharged"]) > 0.0
-        grids = {}  # the grid series keeps one mesh in input order through every repartition
-        for f in ("reference", "one"):
-            with h5py.File(folder / f / "grid.h5") as h5:  # mid-run: at the end all has sunk
-                grids[f] = (h5["mesh/x"][()], h5["mesh/cells"][()], h5["step10/momentum"][()])
-        (x, cells, momentum), (x1, cells1, momentum1) = grids["reference"], grids["one"]
+        # the grid series, read back in input order, is the serial run's through every repartition
+        grids = {f: xdmf.read(folder / f / "grid.xdmf", 10) for f in ("reference", "one")}  # mid-run
+        (_, x, cells, fields), (_, x1, cells1, fields1) = grids["reference"], grids["one"]
+        momentum, momentum1 = fields["momentum"], fields1["momentum"]
         distance, match = cKDTree(x1).query(x)  # the serial mesh may number its input otherwise
         assert distance.max() < 1e-12 and np.unique(match).size == len(x1)
         as_set = lambda cells: {tuple(c) for c in np.sort(cells, axis=1)}  # noqa: E731
@@ -507,3 +507,84 @@ def test_a_rebalanced_run_resumes_bit_identical_and_equals_the_serial_run(tmp_pa
         assert np.allclose(momentum, momentum1[match], rtol=1e-9, atol=1e-12 * np.abs(momentum).max())
         for k in ("kinetic", "strain", "potential", "dissipated", "discharged"):
             assert float(last["reference"][k]) == pytest.approx(float(last["one"][k]), rel=1e-9), k
+
+
+def _layout_run(folder, layout, t_end=0.03, after=None):
+    """The falling block of the output tests, written with ``layout`` into ``folder``."""
+    grid = dm.Grid(rectangle((0, 0), (1, 1), (6, 6)))
+    mat = dm.LinearElastic(E=1e4, nu=0.3, rho=100.0)
+    P = dm.seed(grid, mat, ppc=4, where=lambda x: x[1] < 0.5)
+    P.v[:, 0] = 0.1 * P.x[:, 1]  # grid velocity and momentum non-zero everywhere the block is
+    bottom = dm.FixedBC(grid.nodes_where(lambda x: np.isclose(x[1], 0.0)))
+    solver = dm.Solver(grid, P, mat, bcs=[bottom], gravity=(0, -9.81), dt=1e-3)
+    with dm.Output(folder, comm, layout=layout) as out:
+        solver.run(t_end, output=out, output_interval=0.01, progress=False)
+    return solver
+
+
+LAYOUTS = ["per-rank", "collective"] if h5py.get_config().mpi else ["per-rank"]
+
+
+@pytest.mark.parametrize("layout", LAYOUTS)
+def test_each_rank_writes_its_own_share_and_the_series_reads_as_the_gathered_one(tmp_path, layout):
+    """Particles (by id) and grid (by input node) equal the gathered output bit for bit, every time."""
+    from dolfin_mpm.io import xdmf
+
+    folder = comm.bcast(tmp_path, root=0)
+    solver = _layout_run(folder / layout, layout)
+    _layout_run(folder / "gather", "gather")
+    owned = len(solver.particles)
+    files = sorted((folder / layout).glob("particles*.h5"))
+    if layout == "per-rank":  # each rank's file holds its particles and no others
+        with h5py.File(folder / layout / f"particles-rank{comm.rank}.h5") as f:
+            assert len(f["step3/x"]) == owned
+    comm.Barrier()
+    if comm.rank != 0:
+        return
+    assert len(files) == (comm.size if layout == "per-rank" else 1)
+    root = xdmf.ET.parse(folder / layout / "particles.xdmf").getroot()
+    spatial = root.findall(".//Grid[@CollectionType='Spatial']")
+    assert len(spatial) == (4 if layout == "per-rank" and comm.size > 1 else 0)
+    for k in range(4):
+        for name in ("particles", "grid"):
+            t, x, cells, fields = xdmf.read(folder / layout / f"{name}.xdmf", k)
+            t1, x1, cells1, fields1 = xdmf.read(folder / "gather" / f"{name}.xdmf", k)
+            assert t == t1 == pytest.approx(0.01 * k)
+            if name == "particles":
+                order, order1 = np.argsort(fields["id"]), np.argsort(fields1["id"])
+                assert np.array_equal(x[order], x1[order1])
+            else:  # the same nodes in the same order; the same cells in any order
+                order = order1 = slice(None)
+                assert np.array_equal(x, x1) and np.array_equal(fields.pop("node"), np.arange(len(x1)))
+                as_set = lambda c: {tuple(r) for r in np.sort(c, axis=1)}  # noqa: E731
+                assert as_set(cells) == as_set(cells1)
+            assert fields.keys() == fields1.keys()
+            for f in fields:
+                assert np.array_equal(fields[f][order], fields1[f][order1]), (name, k, f)
+    assert np.abs(fields["momentum"]).max() > 0.0
+
+
+def test_a_series_written_in_pieces_extends_in_another_layout(tmp_path):
+    """Resumed gathered (as on one rank), a per-rank series keeps its earlier times readable."""
+    from dolfin_mpm.io import xdmf
+
+    folder = comm.bcast(tmp_path, root=0)
+    _layout_run(folder / "run", "per-rank", t_end=0.02)
+    solver = _layout_run(folder / "scratch", "gather", t_end=0.005)
+    with dm.Output(folder / "run", comm, after=0.01, layout="gather") as out:
+        assert out.last_time == 0.01
+        solver.time = 0.015
+        out.write(solver)
+    total = solver.num_particles()
+    if comm.rank != 0:
+        return
+    times = [xdmf.read(folder / "run" / "grid.xdmf", k)[0] for k in range(3)]
+    assert times == [0.0, 0.01, 0.015]
+    with pytest.raises(IndexError):
+        xdmf.read(folder / "run" / "grid.xdmf", 3)
+    for k in range(3):
+        _, x, _, fields = xdmf.read(folder / "run" / "particles.xdmf", k)
+        assert len(x) == total and np.all(np.isfinite(fields["velocity"]))
+        _, x, cells, fields = xdmf.read(folder / "run" / "grid.xdmf", k)
+        assert len(x) == 49 and len(cells) == 72
+        assert k == 0 or fields["mass"].sum() > 0.0  # t = 0: before the first P2G

@@ -9,6 +9,7 @@ from pathlib import Path
 import dolfin_mpm  # noqa: F401  (first: loads DOLFINx's libraries)
 
 # isort: split
+import h5py
 import meshio
 import numpy as np
 import pytest
@@ -391,3 +392,18 @@ def test_cells_weigh_the_particles_the_bodies_seed_in_them():
     centroids = np.array([[0.05, 0.1, 0.0], [0.3, 0.1, 0.0], [0.05, 0.22, 0.0]]).T
     assert np.array_equal(weight(centroids), [4.0, 0.0, 0.0])
     assert np.array_equal(scenario._seeded({}, 1e-12)(centroids), [1.0, 1.0, 1.0])  # no body: by count
+
+
+@pytest.mark.parametrize(
+    "value, match",
+    [
+        ('"rows"', r'output.layout: must be one of "auto", "gather", "collective", "per-rank", got "rows"'),
+        ('"collective"', r"output.layout: 'collective' needs h5py built with MPI \(this one is serial\)"),
+    ],
+)
+def test_a_bad_output_layout_is_named(value, match):
+    if "collective" in value and h5py.get_config().mpi:
+        pytest.skip("h5py here has MPI: a collective layout is allowed")
+    with pytest.raises(scenario.ScenarioError, match=match):
+        scenario.load(DEMOS / "silo.toml", [f"output.layout={value}"])
+    assert scenario.load(DEMOS / "silo.toml", ['output.layout="per-rank"'])["output"]["layout"] == "per-rank"

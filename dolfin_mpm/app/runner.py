@@ -197,8 +197,9 @@ class Runner:
         output = None
         if cfg["output"]["xdmf"]:
             try:
-                # rank 0 opens the files; a resumed run extends them from its checkpoint's time
-                output = Output(self.folder, self.comm, None if self.fresh else s.time)
+                # a resumed run extends the series from its checkpoint's time
+                layout = None if cfg["output"]["layout"] == "auto" else cfg["output"]["layout"]
+                output = Output(self.folder, self.comm, None if self.fresh else s.time, layout)
             except OSError as e:
                 raise RunError(f"cannot write the XDMF series in {self.folder} ({e})") from None
         flag = {"signum": 0}
@@ -234,7 +235,7 @@ class Runner:
         self._record()
         if output is not None:
             try:
-                output.write(self.sim.solver)  # collective; only rank 0 writes
+                output.write(self.sim.solver)  # collective
             except OSError as e:
                 message = f"writing the XDMF series in {self.folder} failed ({e}); {self._last_checkpoint()}"
                 if self.comm.size > 1:  # the other ranks are past the write: stop them all

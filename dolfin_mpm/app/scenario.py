@@ -35,6 +35,7 @@ from dolfin_mpm.core.seeding import geostatic_stress, reference_points, seed
 from dolfin_mpm.core.walls import RigidWall
 from dolfin_mpm.explicit.options import INTEGERS, QUADRATURE, SCHEMES, STRESS, VOLUMETRIC, Options
 from dolfin_mpm.explicit.solver import Solver
+from dolfin_mpm.io import xdmf
 from dolfin_mpm.io.groups import read_groups
 from dolfin_mpm.materials import DruckerPragerViscoplastic, LinearElastic
 from dolfin_mpm.parallel import partition
@@ -756,7 +757,7 @@ def _events(c: _Checker, events, time: dict, walls: dict) -> list[dict]:
 
 
 def _output(c: _Checker, t: dict, time: dict, materials: dict, gdim: int) -> dict:
-    keys = ("interval", "xdmf", "checkpoint_interval", "figures", "figure_field", "figure_interval")
+    keys = ("interval", "xdmf", "layout", "checkpoint_interval", "figures", "figure_field", "figure_interval")
     c.keys(t, "output", keys)
     span = max(time["end"] - time["start"], 1e-300)
     positive = Range(0.0, INF, "s")
@@ -767,6 +768,7 @@ def _output(c: _Checker, t: dict, time: dict, materials: dict, gdim: int) -> dic
     o = {
         "interval": c.value(t, "output", "interval", "number", span / 50, check=positive),
         "xdmf": c.value(t, "output", "xdmf", "bool", True),
+        "layout": c.value(t, "output", "layout", "string", "auto", check=("auto", *xdmf.LAYOUTS)),
         "checkpoint_interval": c.value(
             t, "output", "checkpoint_interval", "number", span / 10, check=positive
         ),
@@ -777,6 +779,11 @@ def _output(c: _Checker, t: dict, time: dict, materials: dict, gdim: int) -> dic
         ),
         "figure_interval": c.value(t, "output", "figure_interval", "number", span / 5, check=positive),
     }
+    if o["layout"] not in ("auto", None):
+        try:
+            xdmf.check_layout(o["layout"])
+        except ValueError as e:
+            c.fail("output.layout", str(e).removeprefix("output layout: "))
     return o
 
 

@@ -140,6 +140,9 @@ DESCRIPTIONS = {
     "output.interval": "time between outputs of particles, grid and history [s] (default: the run's span "
     "/ 50)",
     "output.xdmf": "write particles.xdmf and grid.xdmf",
+    "output.layout": "how the ranks write them: gather (to rank 0, one file), collective (one file, each "
+    "rank its rows; needs h5py with MPI), per-rank (a file per rank, one XDMF series); auto: gather on "
+    "one rank, else collective where h5py has MPI, else per-rank",
     "output.checkpoint_interval": "time between checkpoints [s] (default: the run's span / 10)",
     "output.figures": "draw figures of the particles, the energy balance and the discharge",
     "output.figure_field": "particle field the figures colour by: speed, p, q, mass, volume, vx, vy, vz "

@@ -1,8 +1,21 @@
 """XDMF/HDF5 time series of particles (moving point cloud) and grid fields, for ParaView.
 
-Each write appends one time to an HDF5 file (flushed) and rewrites the small XDMF file
-atomically, so a run that stops at any point leaves a valid, readable series. Data from all
-ranks is gathered to rank 0, which alone writes.
+Each write appends one time to HDF5 (flushed) and rewrites the small XDMF file atomically, so a
+run that stops at any point leaves a valid, readable series. How the ranks' data reaches the
+disk (:data:`LAYOUTS`):
+
+- ``"gather"``: gathered to rank 0, which writes one ``.h5`` file (the default on one rank);
+  rank 0 holds the whole output in memory while it writes.
+- ``"collective"``: every rank writes its own rows of each dataset of one ``.h5`` file through
+  MPI-IO (h5py built with MPI; the default under MPI where it is).
+- ``"per-rank"``: every rank writes its own ``<name>-rank<r>.h5``, and each time of the XDMF
+  file is a spatial collection of the ranks' pieces, which ParaView shows as one data set (the
+  default under MPI where h5py is serial).
+
+With the last two no rank holds more than its own share. The grid is then written as each
+rank's owned cells and the nodes they use (a node on a partition boundary once per rank that
+uses it) with a field ``node``, its number in the mesh's input; :func:`read` joins the pieces
+of any layout and puts such a grid back in that order.
 """
 
 import os
@@ -11,43 +24,102 @@ from pathlib import Path
 
 import h5py
 import numpy as np
+from mpi4py import MPI
 
 from dolfin_mpm.core import compat
 from dolfin_mpm.io.disk import ensure_room, tree_bytes
 from dolfin_mpm.materials.tensor import invariants
 
-__all__ = ["Output", "XDMFSeries", "particle_fields"]
+__all__ = ["LAYOUTS", "Output", "XDMFSeries", "default_layout", "particle_fields", "read"]
 
 _TYPES = {1: "Scalar", 3: "Vector", 9: "Tensor"}
 
 
+#: How the ranks' data reaches the disk (see the module's docstring).
+LAYOUTS = ("gather", "collective", "per-rank")
+
+
+def default_layout(comm) -> str:
+    """``"gather"`` on one rank; under MPI ``"collective"`` where h5py has MPI, else ``"per-rank"``."""
+    if comm.size == 1:
+        return "gather"
+    return "collective" if h5py.get_config().mpi else "per-rank"
+
+
+def check_layout(layout: str) -> str:
+    """``layout`` if this h5py can write it, else a ``ValueError`` naming the choices."""
+    if layout not in LAYOUTS:
+        raise ValueError(f"output layout: {layout!r} is not one of {', '.join(LAYOUTS)}")
+    if layout == "collective" and not h5py.get_config().mpi:
+        raise ValueError(
+            "output layout: 'collective' needs h5py built with MPI (this one is serial); "
+            "use 'per-rank' or 'gather'"
+        )
+    return layout
+
+
 class XDMFSeries:
-    """A temporal collection of grids in one ``.xdmf`` + ``.h5`` pair.
+    """A temporal collection of grids in one ``.xdmf`` file, its data in HDF5.
+
+    Collective over ``comm``: every rank constructs it and calls :meth:`write` with its own
+    piece (its points, cells and fields); rank 0 alone writes the XDMF text.
 
     Args:
-        path: the ``.xdmf`` file; the data goes to the same name with ``.h5``.
+        path: the ``.xdmf`` file; the data goes to the same name with ``.h5`` (``-rank<r>.h5``
+            for the layout ``"per-rank"``).
         after: extend the series already there, keeping its times up to ``after`` [s] and
             dropping the later ones (a run resumed from a checkpoint at ``after`` writes them
             again); ``None``, or no series there: a new series.
+        comm: the ranks (default: this process alone).
+        layout: one of :data:`LAYOUTS`.
 
     """
 
-    def __init__(self, path, after: float | None = None):
+    def __init__(self, path, after: float | None = None, *, comm=None, layout: str = "gather"):
         self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.h5_path = self.path.with_suffix(".h5")
+        self.comm = MPI.COMM_SELF if comm is None else comm
+        self.layout = check_layout(layout)
         self.count = 0
-        if after is not None and self.path.exists() and self.h5_path.exists():
-            self._extend(after)
-            return
-        self.h5 = h5py.File(self.h5_path, "w")
-        self.root = ET.Element("Xdmf", Version="3.0")
-        domain = ET.SubElement(self.root, "Domain")
-        self.series = ET.SubElement(
-            domain, "Grid", Name="series", GridType="Collection", CollectionType="Temporal"
-        )
+        self.root = self.series = self.h5 = None
+        rank = self.comm.rank
+        if self.layout == "per-rank":
+            self.h5_path = self.path.with_name(f"{self.path.stem}-rank{rank}.h5")
+        else:
+            self.h5_path = self.path.with_suffix(".h5")
+        extend, error = False, None
+        if rank == 0:
+            try:
+                self.path.parent.mkdir(parents=True, exist_ok=True)
+                extend = after is not None and self.path.exists()  # in any layout: the text names the files
+                if extend:
+                    self._read_xml(after)
+                else:
+                    self.root = ET.Element("Xdmf", Version="3.0")
+                    domain = ET.SubElement(self.root, "Domain")
+                    self.series = ET.SubElement(
+                        domain, "Grid", Name="series", GridType="Collection", CollectionType="Temporal"
+                    )
+            except (OSError, ValueError, ET.ParseError) as e:  # a file that is not a series
+                error = e
+        extend, self.count, error = self.comm.bcast((extend, self.count, error), root=0)
+        if error is not None:  # on every rank: the others must not wait for rank 0
+            raise error
+        mode = "a" if extend else "w"
+        if self.layout == "collective":
+            self.h5 = h5py.File(self.h5_path, mode, driver="mpio", comm=self.comm)
+        elif self.layout == "per-rank" or rank == 0:
+            self.h5 = h5py.File(self.h5_path, mode)
+        if extend and self.h5 is not None:
+            # the dropped times' data, and any a stopped write left beyond what the XDMF file lists
+            for name in sorted(n for n in self.h5 if n.startswith("step") and int(n[4:]) >= self.count):
+                del self.h5[name]
+        meshes = self.comm.bcast(self._mesh_groups() if rank == 0 else None, root=0)
+        #: The static meshes' groups the series refers to, in any file; and those in this layout's one file.
+        self._meshes = {group for _, group in meshes}
+        self._stored = {g for file, g in meshes if file == self.h5_path.name and self.layout != "per-rank"}
 
-    def _extend(self, after: float) -> None:
+    def _read_xml(self, after: float) -> None:
+        """The XDMF text of the series being extended, its times after ``after`` dropped (rank 0)."""
         self.root = ET.parse(self.path).getroot()
         self.series = self.root.find("Domain/Grid")
         if self.series is None or self.series.get("CollectionType") != "Temporal":
@@ -58,73 +130,150 @@ class XDMFSeries:
             raise ValueError(f"{self.path}: its times are not in order")
         for g in grids[len(keep) :]:
             self.series.remove(g)
-        self.h5 = h5py.File(self.h5_path, "a")
-        # the dropped times' data, and any a stopped write left beyond what the XDMF file lists
-        for name in [n for n in self.h5 if n.startswith("step") and int(n[4:]) >= len(keep)]:
-            del self.h5[name]
         self.count = len(keep)
+
+    def _mesh_groups(self) -> set[tuple[str, str]]:
+        """The static meshes the listed times refer to, as ``(file, group)`` (rank 0)."""
+        groups = set()
+        for item in self.series.iter("DataItem"):
+            file, name = item.text.split(":/")
+            if name.startswith("mesh"):
+                groups.add((file, name.split("/")[0]))
+        return groups
+
+    def new_mesh_group(self) -> str:
+        """A name for a static mesh that no time of the series uses yet: ``mesh``, ``mesh1``, ..."""
+        k = 0
+        while (name := "mesh" if k == 0 else f"mesh{k}") in self._meshes:
+            k += 1
+        return name
 
     @property
     def last_time(self) -> float | None:
-        """The series' last time [s], ``None`` while it is empty."""
+        """The series' last time [s], ``None`` while it is empty (on rank 0; ``None`` elsewhere)."""
+        if self.series is None:
+            return None
         grids = list(self.series)
         return float(grids[-1].find("Time").get("Value")) if grids else None
 
-    def _item(self, parent, name: str, data: np.ndarray) -> None:
-        if name not in self.h5:
-            self.h5.create_dataset(name, data=data)
-        number = {"float64": "Float", "float32": "Float", "int32": "Int", "int64": "Int"}[data.dtype.name]
-        item = ET.SubElement(
-            parent, "DataItem", Dimensions=" ".join(map(str, data.shape)), Format="HDF",
-            NumberType=number, Precision=str(data.dtype.itemsize),
-        )  # fmt: skip
-        item.text = f"{self.h5_path.name}:/{name}"
-
-    def write(
-        self, t: float, points, cells, cell_type: str, fields: dict[str, np.ndarray], static_mesh=False
-    ):
-        """Append the grid at time ``t``.
+    def write(self, t: float, points, cells, cell_type: str, fields: dict[str, np.ndarray], mesh=None):
+        """Append this rank's piece of the grid at time ``t`` (collective).
 
         Args:
             points: ``shape=(num_points, 3)``.
-            cells: ``shape=(num_cells, nodes_per_cell)``.
+            cells: ``shape=(num_cells, nodes_per_cell)``, indices into this piece's ``points``.
             cell_type: XDMF topology type (``Polyvertex``, ``Triangle``, ``Tetrahedron``).
             fields: nodal data by name, ``shape=(num_points,)``, ``(num_points, 3)`` or ``(num_points, 9)``.
-            static_mesh: store points and cells once and refer to them at every time.
+            mesh: the group of a static mesh: points and cells are stored there the first time
+                and referred to after (the caller keeps the same pieces under one name);
+                ``None``: stored at every time.
 
         """
-        k = self.count
-        new = [] if static_mesh and k > 0 else [points, cells]
-        xml = self.path.stat().st_size if self.path.exists() else 0
-        ensure_room(self.path.parent, tree_bytes([*new, *fields.values()]) + 2 * xml)
+        k, comm = self.count, self.comm
+        fields = {n: v.reshape(len(points), int(np.prod(v.shape[1:]))) for n, v in fields.items()}
+        fields = {n: v if v.shape[1] > 1 else v[:, 0] for n, v in fields.items()}
+        group = mesh or f"step{k}"
+        arrays = {} if mesh in self._stored else {f"{group}/x": points, f"{group}/cells": cells}
+        if arrays and group in (self.h5 or ()):  # left by a time the series dropped
+            del self.h5[group]
+        arrays |= {f"step{k}/{name}": v for name, v in fields.items()}
+        counts = np.array(comm.allgather((len(points), len(cells))), dtype=np.int64).reshape(-1, 2)
+        self._ensure_room(arrays)
+        if self.layout == "per-rank":
+            for name, a in arrays.items():
+                self.h5.create_dataset(name, data=a)
+            pieces = [(f"{self.path.stem}-rank{j}.h5", n) for j, n in enumerate(counts) if n[0] > 0]
+        else:
+            self._write_rows(arrays, counts)
+            pieces = [(self.h5_path.name, counts.sum(axis=0))]
+        if mesh is not None:
+            self._meshes.add(mesh)
+            self._stored.add(mesh)
+        self.count += 1
+        if self.h5 is not None:
+            self.h5.flush()
+        if comm.rank == 0:
+            self._write_xml(t, k, group, pieces, cell_type, cells, fields)
+
+    def _ensure_room(self, arrays: dict[str, np.ndarray]) -> None:
+        """The disk's room for every rank's ``arrays`` and the XDMF text, checked on rank 0 for all."""
+        total = self.comm.allreduce(tree_bytes(list(arrays.values())))
+        error = None
+        if self.comm.rank == 0:
+            xml = self.path.stat().st_size if self.path.exists() else 0
+            try:
+                ensure_room(self.path.parent, total + 2 * xml)
+            except OSError as e:
+                error = e
+        error = self.comm.bcast(error, root=0)
+        if error is not None:
+            raise error
+
+    def _write_rows(self, arrays: dict[str, np.ndarray], counts: np.ndarray) -> None:
+        """Each array as one dataset of every rank's rows in rank order (cells renumbered).
+
+        ``"gather"``: sent to rank 0, which writes; ``"collective"``: each rank writes its rows.
+        """
+        comm, rank = self.comm, self.comm.rank
+        first = np.concatenate([[0, 0], np.cumsum(counts, axis=0)[:-1].ravel()]).reshape(-1, 2)[rank]
+        for name, a in arrays.items():
+            row = first[1] if name.endswith("/cells") else first[0]
+            if name.endswith("/cells"):
+                a = (a + first[0]).astype(a.dtype)  # this piece's points start at row first[0]
+            if self.layout == "gather":
+                parts = comm.gather(a, root=0)
+                if rank == 0:
+                    self.h5.create_dataset(name, data=np.concatenate(parts))
+                continue
+            total = counts[:, 1 if name.endswith("/cells") else 0].sum()
+            dset = self.h5.create_dataset(name, (total, *a.shape[1:]), dtype=a.dtype)
+            if len(a):
+                dset[row : row + len(a)] = a
+
+    def _write_xml(self, t, k, group, pieces, cell_type, cells, fields) -> None:
+        """The XDMF text with time ``t`` added, replaced atomically (rank 0)."""
         grid = ET.SubElement(self.series, "Grid", Name=f"t{k}", GridType="Uniform")
         ET.SubElement(grid, "Time", Value=repr(float(t)))
-        mesh_group = "mesh" if static_mesh else f"step{k}"
-        topo = ET.SubElement(
-            grid, "Topology", TopologyType=cell_type, NumberOfElements=str(len(cells)),
-            NodesPerElement=str(cells.shape[1]),
-        )  # fmt: skip
-        self._item(topo, f"{mesh_group}/cells", cells)
-        geom = ET.SubElement(grid, "Geometry", GeometryType="XYZ")
-        self._item(geom, f"{mesh_group}/x", points)
-        for name, values in fields.items():
-            values = values.reshape(len(points), int(np.prod(values.shape[1:])))
-            attr = ET.SubElement(
-                grid,
-                "Attribute",
-                Name=name,
-                AttributeType=_TYPES.get(values.shape[1], "Matrix"),
-                Center="Node",
-            )
-            self._item(attr, f"step{k}/{name}", values if values.shape[1] > 1 else values[:, 0])
-        self.count += 1
-        self.h5.flush()
+        if len(pieces) != 1:  # one piece per rank: a spatial collection, which ParaView shows as one
+            grid.set("GridType", "Collection")
+            grid.set("CollectionType", "Spatial")
+        for file, (num_points, num_cells) in pieces:
+            piece = grid if len(pieces) == 1 else ET.SubElement(grid, "Grid", Name=file, GridType="Uniform")
+            topo = ET.SubElement(
+                piece, "Topology", TopologyType=cell_type, NumberOfElements=str(num_cells),
+                NodesPerElement=str(cells.shape[1]),
+            )  # fmt: skip
+            number = _NUMBERS[cells.dtype.kind]
+            _item(topo, file, f"{group}/cells", (num_cells, cells.shape[1]), number, cells.dtype.itemsize)
+            geom = ET.SubElement(piece, "Geometry", GeometryType="XYZ")
+            _item(geom, file, f"{group}/x", (num_points, 3), "Float", 8)
+            for name, values in fields.items():
+                shape = (num_points, *values.shape[1:])
+                width = values.shape[1] if values.ndim > 1 else 1
+                attr = ET.SubElement(
+                    piece, "Attribute", Name=name, AttributeType=_TYPES.get(width, "Matrix"), Center="Node"
+                )
+                _item(
+                    attr, file, f"step{k}/{name}", shape, _NUMBERS[values.dtype.kind], values.dtype.itemsize
+                )
         tmp = self.path.with_name(self.path.name + ".tmp")
         ET.ElementTree(self.root).write(tmp, xml_declaration=True, encoding="utf-8")
         os.replace(tmp, self.path)
 
     def close(self) -> None:
-        self.h5.close()
+        if self.h5 is not None:
+            self.h5.close()
+
+
+_NUMBERS = {"f": "Float", "i": "Int", "u": "UInt"}
+
+
+def _item(parent, file: str, name: str, shape: tuple, number: str, precision: int) -> None:
+    item = ET.SubElement(
+        parent, "DataItem", Dimensions=" ".join(map(str, shape)), Format="HDF", NumberType=number,
+        Precision=str(precision),
+    )  # fmt: skip
+    item.text = f"{file}:/{name}"
 
 
 def particle_fields(P) -> dict[str, np.ndarray]:
@@ -152,48 +301,55 @@ class Output:
 
     ``after`` [s]: extend the series in ``folder``, from their times up to ``after`` on (see
     :class:`XDMFSeries`): a run resumed from its checkpoint at ``after`` continues its files.
+    ``layout``: one of :data:`LAYOUTS`, ``None`` for :func:`default_layout`.
 
     Particle fields: velocity, stress (full 3x3), p, q, mass, volume, id, and every material
-    state array. Grid fields: mass, momentum, velocity, internal, external and contact force.
+    state array. Grid fields: mass, momentum, velocity, internal, external and contact force;
+    with a layout of pieces also ``node``, the node's number in the mesh's input.
     """
 
-    def __init__(self, folder, comm, after: float | None = None):
+    def __init__(self, folder, comm, after: float | None = None, layout: str | None = None):
         self.folder = Path(folder)
         self.comm = comm
-        self.particles = self.grid = None
-        last = error = None
+        self.layout = check_layout(default_layout(comm) if layout is None else layout)
         self._mesh = None
-        if comm.rank == 0:
-            try:
-                self.folder.mkdir(parents=True, exist_ok=True)
-                self.particles = XDMFSeries(self.folder / "particles.xdmf", after)
-                self.grid = XDMFSeries(self.folder / "grid.xdmf", after)
-                last = self.particles.last_time
-            except (OSError, ValueError, KeyError, ET.ParseError) as e:  # a file that is not a series
-                error = str(e)
-        last, error = comm.bcast((last, error), root=0)
-        if error is not None:  # on every rank: the others must not wait for rank 0
-            raise OSError(error)
+        try:
+            self.particles = XDMFSeries(self.folder / "particles.xdmf", after, comm=comm, layout=self.layout)
+            self.grid = XDMFSeries(self.folder / "grid.xdmf", after, comm=comm, layout=self.layout)
+        except (ValueError, KeyError, ET.ParseError) as e:  # a file that is not a series
+            raise OSError(str(e)) from None
         #: The time last written [s] (of the series extended, with ``after``).
-        self.last_time: float | None = last
+        self.last_time: float | None = comm.bcast(self.particles.last_time, root=0)
 
     def write(self, solver) -> None:
-        """Append the solver's current state (once per simulated time)."""
+        """Append the solver's current state (once per simulated time; collective)."""
         if solver.time == self.last_time:
             return
         self.last_time = solver.time
-        P, comm = solver.particles, self.comm
-        x = _gather(comm, P.x)
-        fields = {name: _gather(comm, a) for name, a in particle_fields(P).items()}
-        if comm.rank == 0:
-            cells = np.arange(len(x), dtype=np.int32).reshape(-1, 1)
-            self.particles.write(solver.time, x, cells, "Polyvertex", fields)
-        self._write_grid(solver)
+        P = solver.particles
+        cells = np.arange(len(P), dtype=np.int32).reshape(-1, 1)
+        self.particles.write(solver.time, P.x, cells, "Polyvertex", particle_fields(P))
+        if self._mesh is None or self._mesh["grid"] is not solver.grid:  # a rebalance brings a new grid
+            self._mesh = self._pieces(solver.grid) if self.layout != "gather" else self._gathered(solver.grid)
+        m = self._mesh
+        g = solver.grid
+        fields = {"mass": self._values(m, g.mass, 1)[:, 0]}
+        for f in (g.momentum, g.velocity, g.f_int, g.f_ext, g.f_contact):
+            fields[f.name] = _pad3(self._values(m, f, g.gdim))
+        if self.layout == "gather":
+            fields = {name: _gather(self.comm, a) for name, a in fields.items()}
+            fields = {
+                name: a[m["order"]] if a is not None else m["empty"][name] for name, a in fields.items()
+            }
+        else:
+            fields["node"] = m["node"]
+        cell_type = "Triangle" if g.tdim == 2 else "Tetrahedron"
+        self.grid.write(solver.time, m["x"], m["cells"], cell_type, fields, mesh=m["group"])
 
-    def _grid_mesh(self, grid):
-        """The static mesh, gathered: owned nodes' P1 dofs, and on rank 0 the mesh in input order.
+    def _gathered(self, grid) -> dict:
+        """The whole mesh on rank 0, its nodes in input order (empty pieces elsewhere).
 
-        The nodes are numbered as in the mesh's input, which no partition changes: after a
+        The input numbering does not change with the partition: after a
         :meth:`~dolfin_mpm.explicit.solver.Solver.rebalance` the mesh written stays the same.
         """
         msh = grid.mesh
@@ -206,35 +362,84 @@ class Output:
         cells = _gather(self.comm, inputs[geom_dofs[: grid.num_owned_cells]])
         ids = _gather(self.comm, inputs[:owned])
         x = _gather(self.comm, msh.geometry.x[:owned])
+        mesh = {"grid": grid, "nodes": node_of_geom[:owned], "group": "mesh", "scatter": False}
+        width = {"mass": None, **{n: 3 for n in ("momentum", "velocity", "f_int", "f_ext", "f_contact")}}
+        mesh["empty"] = {n: np.zeros((0, w) if w else 0) for n, w in width.items()}
         if self.comm.rank != 0:
-            return grid, node_of_geom[:owned], None, None, None
+            return mesh | {"x": np.zeros((0, 3)), "cells": np.zeros((0, grid.tdim + 1), dtype=np.int64)}
         order = np.argsort(ids)
-        return grid, node_of_geom[:owned], x[order], np.searchsorted(ids[order], cells), order
+        return mesh | {"x": x[order], "cells": np.searchsorted(ids[order], cells), "order": order}
 
-    def _write_grid(self, solver) -> None:
-        grid = solver.grid
-        if self._mesh is None or self._mesh[0] is not grid:  # a rebalance brings a new grid
-            self._mesh = self._grid_mesh(grid)
-        _, nodes, points, cells, order = self._mesh
-        fields = {"mass": grid.mass.x.array[nodes]}
-        for f in (grid.momentum, grid.velocity, grid.f_int, grid.f_ext, grid.f_contact):
-            fields[f.name] = _pad3(f.x.array.reshape(-1, grid.gdim)[nodes])
-        fields = {name: _gather(self.comm, a) for name, a in fields.items()}
-        if self.comm.rank == 0:
-            cell_type = "Triangle" if grid.tdim == 2 else "Tetrahedron"
-            fields = {name: a[order] for name, a in fields.items()}
-            self.grid.write(solver.time, points, cells, cell_type, fields, static_mesh=True)
+    def _pieces(self, grid) -> dict:
+        """The piece of this rank: its owned cells and the nodes they use, each with its input number."""
+        from dolfinx import fem
+
+        used = grid.cell_dofs[: grid.num_owned_cells]
+        nodes = np.unique(used)
+        geometry_node = np.empty(grid.num_nodes, dtype=np.int64)  # P1: a dof sits on a geometry node
+        geometry_node[grid.cell_dofs] = compat.geometry_dofmap(grid.mesh)
+        x = grid.mesh.geometry.x[geometry_node[nodes]]
+        return {
+            "grid": grid, "nodes": nodes, "x": x, "node": grid.node_inputs()[nodes],
+            "cells": np.searchsorted(nodes, used), "group": self.grid.new_mesh_group(), "scatter": True,
+            "buffers": {1: fem.Function(grid.Q), grid.gdim: fem.Function(grid.V)},
+        }  # fmt: skip
+
+    @staticmethod
+    def _values(mesh: dict, f, width: int) -> np.ndarray:
+        """``f`` (``width`` values a node) at the piece's nodes, ``shape=(n, width)``.
+
+        A piece's ghost nodes take their owners' values, through a copy: the solver's own
+        arrays stay as they are.
+        """
+        grid = mesh["grid"]
+        values = f.x.array.reshape(-1, width)
+        if mesh["scatter"]:
+            owned = values[: grid.num_owned_nodes].ravel()
+            values = grid.refresh_ghosts(mesh["buffers"][width], owned).reshape(-1, width)
+        return values[mesh["nodes"]]
 
     def close(self) -> None:
-        if self.comm.rank == 0:
-            self.particles.close()
-            self.grid.close()
+        self.particles.close()
+        self.grid.close()
 
     def __enter__(self):
         return self
 
     def __exit__(self, *exc):
         self.close()
+
+
+def read(path, index: int = -1) -> tuple[float, np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    """One time of a series this module wrote, whatever its layout: ``(t, points, cells, fields)``.
+
+    Every rank's piece joined in rank order (cells renumbered); a grid written in pieces is put
+    back in its nodes' input order (the ``node`` field), each node once.
+    """
+    path = Path(path)
+    grid = list(ET.parse(path).getroot().find("Domain/Grid"))[index]
+    pieces = [grid] if grid.get("GridType") == "Uniform" else list(grid.findall("Grid"))
+
+    def data(item) -> np.ndarray:
+        file, name = item.text.strip().split(":/")
+        with h5py.File(path.parent / file, "r") as h5:
+            return h5[name][()]
+
+    points, cells, fields, offset = [], [], {}, 0
+    for piece in pieces:
+        points.append(data(piece.find("Geometry/DataItem")))
+        cells.append(data(piece.find("Topology/DataItem")) + offset)
+        offset += len(points[-1])
+        for attr in piece.findall("Attribute"):
+            fields.setdefault(attr.get("Name"), []).append(data(attr.find("DataItem")))
+    t = float(grid.find("Time").get("Value"))
+    points, cells = np.concatenate(points), np.concatenate(cells)
+    fields = {name: np.concatenate(parts) for name, parts in fields.items()}
+    if "node" in fields:
+        nodes, first = np.unique(fields["node"], return_index=True)
+        cells = np.searchsorted(nodes, fields["node"])[cells]
+        points, fields = points[first], {name: v[first] for name, v in fields.items()}
+    return t, points, cells, fields
 
 
 def _pad3(a: np.ndarray) -> np.ndarray:
