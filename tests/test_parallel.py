@@ -564,12 +564,14 @@ def test_each_rank_writes_its_own_share_and_the_series_reads_as_the_gathered_one
     assert np.abs(fields["momentum"]).max() > 0.0
 
 
-def test_a_series_written_in_pieces_extends_in_another_layout(tmp_path):
-    """Resumed gathered (as on one rank), a per-rank series keeps its earlier times readable."""
+@pytest.mark.parametrize("layout", LAYOUTS)
+def test_a_series_written_in_pieces_extends_in_another_layout(tmp_path, layout):
+    """Resumed gathered (as on one rank), a series in pieces keeps its earlier times readable,
+    and the new times get their own mesh (not the pieces' one of the same name)."""
     from dolfin_mpm.io import xdmf
 
     folder = comm.bcast(tmp_path, root=0)
-    _layout_run(folder / "run", "per-rank", t_end=0.02)
+    _layout_run(folder / "run", layout, t_end=0.02)
     solver = _layout_run(folder / "scratch", "gather", t_end=0.005)
     with dm.Output(folder / "run", comm, after=0.01, layout="gather") as out:
         assert out.last_time == 0.01
@@ -586,5 +588,30 @@ def test_a_series_written_in_pieces_extends_in_another_layout(tmp_path):
         _, x, _, fields = xdmf.read(folder / "run" / "particles.xdmf", k)
         assert len(x) == total and np.all(np.isfinite(fields["velocity"]))
         _, x, cells, fields = xdmf.read(folder / "run" / "grid.xdmf", k)
-        assert len(x) == 49 and len(cells) == 72
+        assert len(x) == len(fields["mass"]) == 49 and len(cells) == 72 and cells.max() == 48
         assert k == 0 or fields["mass"].sum() > 0.0  # t = 0: before the first P2G
+
+
+@pytest.mark.parametrize("layout", ["gather", *LAYOUTS])
+def test_a_data_file_that_cannot_be_read_stops_every_rank(tmp_path, layout):
+    """On extending, a damaged ``.h5`` of any rank is an OSError on all ranks, not a hang."""
+    folder = comm.bcast(tmp_path, root=0) / "run"
+    _layout_run(folder, layout, t_end=0.01)
+    comm.Barrier()
+    if comm.rank == 0:
+        (sorted(folder.glob("grid*.h5"))[0]).write_bytes(b"not HDF5")
+    comm.Barrier()
+    with pytest.raises(OSError, match="grid"):
+        dm.Output(folder, comm, after=0.0, layout=layout)
+
+
+def test_a_series_of_empty_pieces_reads_as_empty(tmp_path):
+    from dolfin_mpm.io import xdmf
+
+    path = comm.bcast(tmp_path, root=0) / "empty.xdmf"
+    series = xdmf.XDMFSeries(path, comm=comm, layout="per-rank")
+    series.write(0.0, np.zeros((0, 3)), np.zeros((0, 1), dtype=np.int32), "Polyvertex", {"p": np.zeros(0)})
+    series.close()
+    if comm.rank == 0:
+        t, x, cells, fields = xdmf.read(path)
+        assert t == 0.0 and x.shape == (0, 3) and len(cells) == 0 and fields["p"].shape == (0,)

@@ -86,13 +86,14 @@ class XDMFSeries:
             self.h5_path = self.path.with_name(f"{self.path.stem}-rank{rank}.h5")
         else:
             self.h5_path = self.path.with_suffix(".h5")
-        extend, error = False, None
+        extend, error, meshes = False, None, set()
         if rank == 0:
             try:
                 self.path.parent.mkdir(parents=True, exist_ok=True)
                 extend = after is not None and self.path.exists()  # in any layout: the text names the files
                 if extend:
                     self._read_xml(after)
+                    meshes = self._mesh_groups()
                 else:
                     self.root = ET.Element("Xdmf", Version="3.0")
                     domain = ET.SubElement(self.root, "Domain")
@@ -101,22 +102,33 @@ class XDMFSeries:
                     )
             except (OSError, ValueError, ET.ParseError) as e:  # a file that is not a series
                 error = e
-        extend, self.count, error = self.comm.bcast((extend, self.count, error), root=0)
+            except (AttributeError, IndexError, TypeError) as e:  # one with parts missing
+                error = ValueError(f"{self.path}: not a series to extend ({type(e).__name__}: {e})")
+        extend, self.count, error, meshes = self.comm.bcast((extend, self.count, error, meshes), root=0)
         if error is not None:  # on every rank: the others must not wait for rank 0
             raise error
-        mode = "a" if extend else "w"
+        #: The static meshes' groups the series refers to (in any file) and those written here.
+        self._meshes, self._written = meshes, set()
+        error = None
+        try:
+            self._open("a" if extend else "w")
+        except OSError as e:  # a data file that is not HDF5, or a folder not writable
+            error = f"{self.h5_path}: {e}"
+        errors = [e for e in self.comm.allgather(error) if e is not None]
+        if errors:  # on every rank, whichever failed
+            self.close()
+            raise OSError(errors[0])
+
+    def _open(self, mode: str) -> None:
+        """Open the data file of this rank, if it has one; on extending, drop the later times' data."""
         if self.layout == "collective":
             self.h5 = h5py.File(self.h5_path, mode, driver="mpio", comm=self.comm)
-        elif self.layout == "per-rank" or rank == 0:
+        elif self.layout == "per-rank" or self.comm.rank == 0:
             self.h5 = h5py.File(self.h5_path, mode)
-        if extend and self.h5 is not None:
+        if mode == "a" and self.h5 is not None:
             # the dropped times' data, and any a stopped write left beyond what the XDMF file lists
             for name in sorted(n for n in self.h5 if n.startswith("step") and int(n[4:]) >= self.count):
                 del self.h5[name]
-        meshes = self.comm.bcast(self._mesh_groups() if rank == 0 else None, root=0)
-        #: The static meshes' groups the series refers to, in any file; and those in this layout's one file.
-        self._meshes = {group for _, group in meshes}
-        self._stored = {g for file, g in meshes if file == self.h5_path.name and self.layout != "per-rank"}
 
     def _read_xml(self, after: float) -> None:
         """The XDMF text of the series being extended, its times after ``after`` dropped (rank 0)."""
@@ -132,17 +144,17 @@ class XDMFSeries:
             self.series.remove(g)
         self.count = len(keep)
 
-    def _mesh_groups(self) -> set[tuple[str, str]]:
-        """The static meshes the listed times refer to, as ``(file, group)`` (rank 0)."""
+    def _mesh_groups(self) -> set[str]:
+        """The groups of the static meshes the listed times refer to, in any file (rank 0)."""
         groups = set()
         for item in self.series.iter("DataItem"):
-            file, name = item.text.split(":/")
+            _, name = item.text.strip().split(":/")
             if name.startswith("mesh"):
-                groups.add((file, name.split("/")[0]))
+                groups.add(name.split("/")[0])
         return groups
 
     def new_mesh_group(self) -> str:
-        """A name for a static mesh that no time of the series uses yet: ``mesh``, ``mesh1``, ..."""
+        """A name for a static mesh no time of the series uses yet: ``mesh``, ``mesh1``, ... (collective)."""
         k = 0
         while (name := "mesh" if k == 0 else f"mesh{k}") in self._meshes:
             k += 1
@@ -164,16 +176,16 @@ class XDMFSeries:
             cells: ``shape=(num_cells, nodes_per_cell)``, indices into this piece's ``points``.
             cell_type: XDMF topology type (``Polyvertex``, ``Triangle``, ``Tetrahedron``).
             fields: nodal data by name, ``shape=(num_points,)``, ``(num_points, 3)`` or ``(num_points, 9)``.
-            mesh: the group of a static mesh: points and cells are stored there the first time
-                and referred to after (the caller keeps the same pieces under one name);
-                ``None``: stored at every time.
+            mesh: the group of a static mesh (from :meth:`new_mesh_group`): points and cells
+                are stored there the first time and referred to after (the caller keeps the
+                same pieces under one name); ``None``: stored at every time.
 
         """
         k, comm = self.count, self.comm
         fields = {n: v.reshape(len(points), int(np.prod(v.shape[1:]))) for n, v in fields.items()}
         fields = {n: v if v.shape[1] > 1 else v[:, 0] for n, v in fields.items()}
         group = mesh or f"step{k}"
-        arrays = {} if mesh in self._stored else {f"{group}/x": points, f"{group}/cells": cells}
+        arrays = {} if mesh in self._written else {f"{group}/x": points, f"{group}/cells": cells}
         if arrays and group in (self.h5 or ()):  # left by a time the series dropped
             del self.h5[group]
         arrays |= {f"step{k}/{name}": v for name, v in fields.items()}
@@ -183,17 +195,19 @@ class XDMFSeries:
             for name, a in arrays.items():
                 self.h5.create_dataset(name, data=a)
             pieces = [(f"{self.path.stem}-rank{j}.h5", n) for j, n in enumerate(counts) if n[0] > 0]
+            pieces = pieces or [(f"{self.path.stem}-rank0.h5", counts[0])]  # all empty: rank 0's
         else:
             self._write_rows(arrays, counts)
             pieces = [(self.h5_path.name, counts.sum(axis=0))]
         if mesh is not None:
             self._meshes.add(mesh)
-            self._stored.add(mesh)
+            self._written.add(mesh)
         self.count += 1
         if self.h5 is not None:
             self.h5.flush()
+        comm.Barrier()  # every rank's data on disk before the XDMF text names it
         if comm.rank == 0:
-            self._write_xml(t, k, group, pieces, cell_type, cells, fields)
+            self._write_xml(t, k, group, pieces, cell_type, points.dtype, cells, fields)
 
     def _ensure_room(self, arrays: dict[str, np.ndarray]) -> None:
         """The disk's room for every rank's ``arrays`` and the XDMF text, checked on rank 0 for all."""
@@ -230,7 +244,7 @@ class XDMFSeries:
             if len(a):
                 dset[row : row + len(a)] = a
 
-    def _write_xml(self, t, k, group, pieces, cell_type, cells, fields) -> None:
+    def _write_xml(self, t, k, group, pieces, cell_type, points, cells, fields) -> None:
         """The XDMF text with time ``t`` added, replaced atomically (rank 0)."""
         grid = ET.SubElement(self.series, "Grid", Name=f"t{k}", GridType="Uniform")
         ET.SubElement(grid, "Time", Value=repr(float(t)))
@@ -246,7 +260,7 @@ class XDMFSeries:
             number = _NUMBERS[cells.dtype.kind]
             _item(topo, file, f"{group}/cells", (num_cells, cells.shape[1]), number, cells.dtype.itemsize)
             geom = ET.SubElement(piece, "Geometry", GeometryType="XYZ")
-            _item(geom, file, f"{group}/x", (num_points, 3), "Float", 8)
+            _item(geom, file, f"{group}/x", (num_points, 3), "Float", points.itemsize)
             for name, values in fields.items():
                 shape = (num_points, *values.shape[1:])
                 width = values.shape[1] if values.ndim > 1 else 1
@@ -263,6 +277,7 @@ class XDMFSeries:
     def close(self) -> None:
         if self.h5 is not None:
             self.h5.close()
+            self.h5 = None
 
 
 _NUMBERS = {"f": "Float", "i": "Int", "u": "UInt"}
@@ -313,10 +328,13 @@ class Output:
         self.comm = comm
         self.layout = check_layout(default_layout(comm) if layout is None else layout)
         self._mesh = None
+        self.particles = self.grid = None
         try:
             self.particles = XDMFSeries(self.folder / "particles.xdmf", after, comm=comm, layout=self.layout)
             self.grid = XDMFSeries(self.folder / "grid.xdmf", after, comm=comm, layout=self.layout)
-        except (ValueError, KeyError, ET.ParseError) as e:  # a file that is not a series
+        except (OSError, ValueError) as e:  # a file that is not a series, or not writable
+            if self.particles is not None:
+                self.particles.close()
             raise OSError(str(e)) from None
         #: The time last written [s] (of the series extended, with ``after``).
         self.last_time: float | None = comm.bcast(self.particles.last_time, root=0)
@@ -362,7 +380,9 @@ class Output:
         cells = _gather(self.comm, inputs[geom_dofs[: grid.num_owned_cells]])
         ids = _gather(self.comm, inputs[:owned])
         x = _gather(self.comm, msh.geometry.x[:owned])
-        mesh = {"grid": grid, "nodes": node_of_geom[:owned], "group": "mesh", "scatter": False}
+        # the same mesh on every partition: one group for the run (a new one on extending a series)
+        group = self._mesh["group"] if self._mesh is not None else self.grid.new_mesh_group()
+        mesh = {"grid": grid, "nodes": node_of_geom[:owned], "group": group, "scatter": False}
         width = {"mass": None, **{n: 3 for n in ("momentum", "velocity", "f_int", "f_ext", "f_contact")}}
         mesh["empty"] = {n: np.zeros((0, w) if w else 0) for n, w in width.items()}
         if self.comm.rank != 0:
