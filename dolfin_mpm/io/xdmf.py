@@ -354,11 +354,9 @@ class Output:
         fields = {"mass": self._values(m, g.mass, 1)[:, 0]}
         for f in (g.momentum, g.velocity, g.f_int, g.f_ext, g.f_contact):
             fields[f.name] = _pad3(self._values(m, f, g.gdim))
-        if self.layout == "gather":
-            fields = {name: _gather(self.comm, a) for name, a in fields.items()}
-            fields = {
-                name: a[m["order"]] if a is not None else m["empty"][name] for name, a in fields.items()
-            }
+        if self.layout == "gather":  # on rank 0 in input order; the others send theirs and write none
+            every = {name: _gather(self.comm, a) for name, a in fields.items()}
+            fields = {n: every[n][m["order"]] if self.comm.rank == 0 else a[:0] for n, a in fields.items()}
         else:
             fields["node"] = m["node"]
         cell_type = "Triangle" if g.tdim == 2 else "Tetrahedron"
@@ -383,8 +381,6 @@ class Output:
         # the same mesh on every partition: one group for the run (a new one on extending a series)
         group = self._mesh["group"] if self._mesh is not None else self.grid.new_mesh_group()
         mesh = {"grid": grid, "nodes": node_of_geom[:owned], "group": group, "scatter": False}
-        width = {"mass": None, **{n: 3 for n in ("momentum", "velocity", "f_int", "f_ext", "f_contact")}}
-        mesh["empty"] = {n: np.zeros((0, w) if w else 0) for n, w in width.items()}
         if self.comm.rank != 0:
             return mesh | {"x": np.zeros((0, 3)), "cells": np.zeros((0, grid.tdim + 1), dtype=np.int64)}
         order = np.argsort(ids)
