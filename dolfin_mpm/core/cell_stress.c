@@ -3,7 +3,8 @@
  * particle p is key[p] = cell[p] groups + material[p]; w[p] is its weight (0: the point keeps
  * its stress and is out of the means); total (num_cells groups) and sums (6 of each) are
  * zeroed scratch. A run of particles of one group (they come in runs where they are ordered
- * by cell) sums in registers: the sums and their order are those of one term at a time. */
+ * by cell) sums in registers: the sums and their order are those of one term at a time. Each
+ * group's sums become its mean with one division a component, before the pass that writes them. */
 #include <stdint.h>
 
 static const int UPPER[6][2] = {{0, 0}, {0, 1}, {0, 2}, {1, 1}, {1, 2}, {2, 2}};
@@ -13,8 +14,8 @@ static inline int64_t group_of(int64_t p, int32_t groups, const int32_t *cell, c
   return (int64_t)cell[p] * groups + (groups > 1 ? material[p] : 0);
 }
 
-void cell_mean(int64_t n, int32_t groups, const int32_t *restrict cell, const int32_t *restrict material,
-               const double *restrict w, const double *restrict sigma, double *restrict out,
+void cell_mean(int64_t n, int64_t num_cells, int32_t groups, const int32_t *restrict cell,
+               const int32_t *restrict material, const double *restrict w, const double *restrict sigma, double *restrict out,
                double *restrict total, double *restrict sums)
 {
   const double *S[6];
@@ -37,16 +38,22 @@ void cell_mean(int64_t n, int32_t groups, const int32_t *restrict cell, const in
     for (int c = 0; c < 6; ++c)
       sums[6 * k + c] = s[c];
   }
-  for (int c = 0; c < 6; ++c)
+  const int64_t size = num_cells * groups;
+  for (int64_t k = 0; k < size; ++k) /* each group's mean, one division a component */
+    if (total[k] > 0.0)
+      for (int c = 0; c < 6; ++c)
+        sums[6 * k + c] /= total[k];
+  double *restrict O[9];
+  for (int c = 0; c < 9; ++c)
+    O[c] = out + c * n;
+  for (int64_t q = 0; q < n; ++q)
   {
-    const int a = UPPER[c][0], b = UPPER[c][1];
-    double *restrict lower = out + (3 * b + a) * n, *restrict upper = out + (3 * a + b) * n;
-    for (int64_t q = 0; q < n; ++q)
+    const int64_t k = group_of(q, groups, cell, material);
+    for (int c = 0; c < 6; ++c)
     {
-      const int64_t k = group_of(q, groups, cell, material);
-      const double mean = w[q] > 0.0 ? sums[6 * k + c] / total[k] : S[c][q];
-      upper[q] = mean;
-      lower[q] = mean;
+      const int a = UPPER[c][0], b = UPPER[c][1];
+      const double mean = w[q] > 0.0 ? sums[6 * k + c] : S[c][q];
+      O[3 * a + b][q] = O[3 * b + a][q] = mean;
     }
   }
 }

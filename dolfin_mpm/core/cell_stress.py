@@ -20,10 +20,10 @@ from dolfin_mpm.materials.tensor import component_first, particle_first
 
 __all__ = ["cell_mean_stress"]
 
-_REAL = native.array(np.float64)
+_REAL, _INDEX = native.array(np.float64), native.array(np.int32)
 _kernels = native.kernels(
     Path(__file__).with_suffix(".c"),
-    {"cell_mean": (ctypes.c_int64, ctypes.c_int32, *[native.array(np.int32)] * 2, *[_REAL] * 5)},
+    {"cell_mean": (ctypes.c_int64, ctypes.c_int64, ctypes.c_int32, _INDEX, _INDEX, *[_REAL] * 5)},
 )
 
 
@@ -54,5 +54,6 @@ def cell_mean_stress(
     w = np.ascontiguousarray(volume if keep is None else np.where(keep, 0.0, volume), dtype=np.float64)
     size = num_cells * groups
     cells, material = (np.ascontiguousarray(a, dtype=np.int32) for a in (cells, material))
-    _kernels().cell_mean(n, groups, cells, material, w, sigma, out, np.zeros(size), np.zeros(6 * size))
+    total, sums = np.zeros(size), np.zeros(6 * size)  # scratch
+    _kernels().cell_mean(n, num_cells, groups, cells, material, w, sigma, out, total, sums)
     return particle_first(out)

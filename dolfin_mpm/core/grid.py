@@ -28,7 +28,8 @@ class Grid:
         num_owned_cells: cells this rank owns; they come first, then the ghosts.
         cell_owner: rank owning each local cell, ``shape=(num_cells,)``.
         K: inverse Jacobian of each cell's affine map, ``shape=(tdim, gdim, num_cells)``.
-        grad_N: P1 basis gradients in each cell [1/m], ``shape=(gdim + 1, gdim, num_cells)``.
+        grad_N: P1 basis gradients in each cell [1/m], ``shape=(num_cells, gdim + 1, gdim)``
+            (cell-first: the transfers read a cell's gradients from one cache line).
         node_x: node coordinates, ``shape=(num_nodes, 3)``.
         h_min: smallest cell height over the local cells [m].
         diameter: longest cell edge over the local cells [m].
@@ -90,7 +91,7 @@ class Grid:
         grad_N = np.concatenate([-K.sum(axis=1, keepdims=True), K], axis=1)
         # Component-first copies: per-particle gathers from them read contiguous memory.
         self.K = np.ascontiguousarray(np.moveaxis(K, 0, -1))  # (tdim, gdim, num_cells)
-        self.grad_N = np.ascontiguousarray(np.moveaxis(grad_N, 0, -1))  # (gdim+1, gdim, num_cells)
+        self.grad_N = np.ascontiguousarray(grad_N)  # (num_cells, gdim+1, gdim)
         self.x0_T = np.ascontiguousarray(x0.T)  # (gdim, num_cells)
         self.cell_dofs_T = np.ascontiguousarray(self.cell_dofs.T, dtype=np.int32)  # (gdim+1, num_cells)
         factorial = 2.0 if self.tdim == 2 else 6.0

@@ -2,7 +2,7 @@
  *
  * Cells are affine simplices of gdim + 1 nodes: x = x0 + J xi, K = J^-1, stored
  * component-first over the cells (locate.Grid: x0_T (gdim, cells), K (gdim, gdim, cells),
- * cell nodes (gdim + 1, cells), basis gradients (gdim + 1, gdim, cells)); particle positions
+ * cell nodes (gdim + 1, cells)); particle positions
  * are (n, 3) row-major, the outputs component-first (particle axis last). Each loop is compiled
  * for 2D and 3D with the dimension a constant.
  */
@@ -38,17 +38,13 @@ INLINE void barycentric_of(int64_t n, int32_t gdim, const double *restrict x, co
   }
 }
 
-/* dofs[a, p] = nodes[a, cells[p]] and dN[a, j, p] = grad_N[a, j, cells[p]]. */
+/* dofs[a, p] = nodes[a, cells[p]]. */
 INLINE void gather_of(int64_t n, int32_t gdim, const int32_t *restrict cells, int64_t num_cells,
-                      const int32_t *restrict nodes, const double *restrict grad_N, int32_t *restrict dofs,
-                      double *restrict dN)
+                      const int32_t *restrict nodes, int32_t *restrict dofs)
 {
   for (int32_t a = 0; a <= gdim; ++a)
     for (int64_t p = 0; p < n; ++p)
       dofs[a * n + p] = nodes[a * num_cells + cells[p]];
-  for (int32_t a = 0; a < (gdim + 1) * gdim; ++a)
-    for (int64_t p = 0; p < n; ++p)
-      dN[a * n + p] = grad_N[a * num_cells + cells[p]];
 }
 
 void barycentric(int64_t n, int32_t gdim, const double *x, const int32_t *cells, int64_t num_cells,
@@ -60,11 +56,11 @@ void barycentric(int64_t n, int32_t gdim, const double *x, const int32_t *cells,
     barycentric_of(n, 3, x, cells, num_cells, x0, K, tol, lam, inside);
 }
 
-void gather_basis(int64_t n, int32_t gdim, const int32_t *cells, int64_t num_cells, const int32_t *nodes,
-                  const double *grad_N, int32_t *dofs, double *dN)
+void gather_nodes(int64_t n, int32_t gdim, const int32_t *cells, int64_t num_cells, const int32_t *nodes,
+                  int32_t *dofs)
 {
   if (gdim == 2)
-    gather_of(n, 2, cells, num_cells, nodes, grad_N, dofs, dN);
+    gather_of(n, 2, cells, num_cells, nodes, dofs);
   else
-    gather_of(n, 3, cells, num_cells, nodes, grad_N, dofs, dN);
+    gather_of(n, 3, cells, num_cells, nodes, dofs);
 }

@@ -29,7 +29,7 @@ _kernels = native.kernels(
             ctypes.c_int64, _INT, _REAL, _INDEX, ctypes.c_int64, _REAL, _REAL, ctypes.c_double, _REAL,
             native.array(np.int8),
         ),
-        "gather_basis": (ctypes.c_int64, _INT, _INDEX, ctypes.c_int64, _INDEX, _REAL, _INDEX, _REAL),
+        "gather_nodes": (ctypes.c_int64, _INT, _INDEX, ctypes.c_int64, _INDEX, _INDEX),
     },
 )  # fmt: skip
 
@@ -38,20 +38,29 @@ _kernels = native.kernels(
 class Basis:
     """P1 basis at the particles, computed once per step and used by every stage.
 
-    C-contiguous arrays, read by the compiled transfers.
+    C-contiguous arrays, read by the compiled transfers. The gradients are constant in a cell:
+    the transfers read them from the grid's table by each particle's cell, not from a copy per
+    particle (48 bytes a particle in 2D, written and read back by every pass).
 
     Attributes:
+        cells: each particle's local cell, int32, ``shape=(n,)``.
         dofs: nodes of each particle's cell, int32, ``shape=(gdim + 1, n)``.
         N: basis values, ``shape=(gdim + 1, n)``.
-        dN: basis gradients [1/m], ``shape=(gdim + 1, gdim, n)``.
+        grad_N: the grid's basis gradients by cell [1/m], ``shape=(num_cells, gdim + 1, gdim)``.
         num_nodes: nodes of the grid (owned and ghosts).
 
     """
 
+    cells: np.ndarray
     dofs: np.ndarray
     N: np.ndarray
-    dN: np.ndarray
+    grad_N: np.ndarray
     num_nodes: int
+
+    @property
+    def dN(self) -> np.ndarray:
+        """Basis gradients at the particles [1/m], ``shape=(gdim + 1, gdim, n)`` (a new array)."""
+        return np.ascontiguousarray(np.moveaxis(self.grad_N[self.cells], 0, -1))
 
 
 def barycentric(grid: Grid, x: np.ndarray, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -102,9 +111,9 @@ def locate(grid: Grid, x: np.ndarray, cells: np.ndarray) -> tuple[np.ndarray, np
 
 
 def basis_at(grid: Grid, cells: np.ndarray, N: np.ndarray) -> Basis:
-    """Gather the nodes and the (cell-constant) basis gradients of located particles."""
+    """Gather the nodes of located particles' cells; the basis of them and of ``N``."""
     n, g = len(cells), grid.gdim
-    dofs, dN = np.empty((g + 1, n), dtype=np.int32), np.empty((g + 1, g, n))
+    dofs = np.empty((g + 1, n), dtype=np.int32)
     cells = np.ascontiguousarray(cells, dtype=np.int32)
-    _kernels().gather_basis(n, g, cells, grid.num_cells, grid.cell_dofs_T, grid.grad_N, dofs, dN)
-    return Basis(dofs=dofs, N=np.ascontiguousarray(N), dN=dN, num_nodes=grid.num_nodes)
+    _kernels().gather_nodes(n, g, cells, grid.num_cells, grid.cell_dofs_T, dofs)
+    return Basis(cells, dofs, np.ascontiguousarray(N), grid.grad_N, grid.num_nodes)

@@ -1,7 +1,8 @@
 /* Particle-to-grid and grid-to-particle loops of transfer.py, one pass over the particles each.
  *
- * Particle p lies in a cell with the nn = gdim + 1 nodes dofs[a n + p] (int32), basis values
- * N[a n + p] and gradients dN[(a gdim + j) n + p] (component-first, as locate.Basis). Nodal
+ * Particle p lies in cell cells[p] with the nn = gdim + 1 nodes dofs[a n + p] (int32) and basis
+ * values N[a n + p] (component-first, as locate.Basis); the cell's basis gradients are
+ * grad[(cells[p] nn + a) gdim + j] (cell-first, the grid's table). Nodal
  * arrays are (num_nodes, k) and particle arrays (n, k), row-major. Sums run over the cell's
  * nodes in order; a nodal sum takes its particles' terms in the particles' order (one pass over
  * the particles, each of its nodes in turn). Each loop is compiled for 2D and 3D with the
@@ -29,14 +30,21 @@ INLINE void cell_of(int64_t n, int32_t nn, const int32_t *restrict dofs, int64_t
     d[a] = dofs[a * n + p];
 }
 
-/* Component i of particle p's internal force at its node a: sum_j sigma_ij V dN_aj. */
+/* Component i of particle p's internal force at its node a: sum_j sigma_ij V dN_aj, with dN the
+ * gradients of p's cell, (nn, gdim). */
 INLINE double force_term(int64_t n, int32_t gdim, const double *restrict sigma, const double *restrict volume,
                          const double *restrict dN, int64_t p, int32_t a, int32_t i)
 {
   double f = 0.0;
   for (int32_t j = 0; j < gdim; ++j)
-    f += sigma[(3 * i + j) * n + p] * volume[p] * dN[(a * gdim + j) * n + p];
+    f += sigma[(3 * i + j) * n + p] * volume[p] * dN[a * gdim + j];
   return f;
+}
+
+/* The basis gradients (nn, gdim) of particle p's cell. */
+INLINE const double *grad_of(int32_t gdim, const int32_t *restrict cells, const double *restrict grad, int64_t p)
+{
+  return grad + (int64_t)cells[p] * (gdim + 1) * gdim;
 }
 
 #define MAX_NODES 4 /* a tetrahedron */
@@ -75,7 +83,8 @@ INLINE void scatter_of(int64_t n, int32_t nn, const int32_t *restrict dofs, cons
 /* out[dofs[a, p], i] += sum_j (sigma_ij[p] volume[p]) dN_aj[p]: the internal forces R of the
  * stresses sigma, component-first (3, 3, n); out (num_nodes, gdim) holds the sums on entry;
  * gdim 2 or 3. */
-INLINE void internal_force_of(int64_t n, int32_t gdim, const int32_t *restrict dofs, const double *restrict dN,
+INLINE void internal_force_of(int64_t n, int32_t gdim, const int32_t *restrict dofs,
+                              const int32_t *restrict cells, const double *restrict grad,
                               const double *restrict sigma, const double *restrict volume,
                               double *restrict out)
 {
@@ -84,11 +93,13 @@ INLINE void internal_force_of(int64_t n, int32_t gdim, const int32_t *restrict d
   double o[MAX_NODES][3];
   while (p < n)
   {
+    const int32_t cell = cells[p];
+    const double *dN = grad_of(gdim, cells, grad, p);
     cell_of(n, nn, dofs, p, d);
     for (int32_t a = 0; a < nn; ++a)
       for (int32_t i = 0; i < gdim; ++i)
         o[a][i] = out[d[a] * gdim + i];
-    for (; p < n && same_cell(n, nn, dofs, p, d); ++p)
+    for (; p < n && cells[p] == cell; ++p)
       for (int32_t a = 0; a < nn; ++a)
         for (int32_t i = 0; i < gdim; ++i)
           o[a][i] += force_term(n, gdim, sigma, volume, dN, p, a, i);
@@ -112,21 +123,33 @@ INLINE void interpolate_of(int64_t n, int32_t nn, const int32_t *restrict dofs, 
     }
 }
 
-/* out[i, j, p] = sum_a nodal[dofs[a, p], i] dN[a, j, p]: the gradient of a nodal field with k
- * components, component-first (k, gdim, n). */
-INLINE void gradient_of(int64_t n, int32_t gdim, const int32_t *restrict dofs, const double *restrict dN,
-                        int32_t k, const double *restrict nodal, double *restrict out)
+/* out[i, j, p] = sum_a nodal[dofs[a, p], i] dN[a, j]: the gradient of a nodal field with k
+ * components, component-first (k, gdim, n). It is constant in a cell: computed once for each run
+ * of particles in one cell and written to each of them. */
+INLINE void gradient_of(int64_t n, int32_t gdim, const int32_t *restrict dofs, const int32_t *restrict cells,
+                        const double *restrict grad, int32_t k, const double *restrict nodal,
+                        double *restrict out)
 {
   const int32_t nn = gdim + 1;
+  double G[MAX_K][3];
   for (int64_t p = 0; p < n; ++p)
+  {
+    if (p == 0 || cells[p] != cells[p - 1])
+    {
+      const double *dN = grad_of(gdim, cells, grad, p);
+      for (int32_t i = 0; i < k; ++i)
+        for (int32_t j = 0; j < gdim; ++j)
+        {
+          double sum = 0.0;
+          for (int32_t a = 0; a < nn; ++a)
+            sum += nodal[(int64_t)dofs[a * n + p] * k + i] * dN[a * gdim + j];
+          G[i][j] = sum;
+        }
+    }
     for (int32_t i = 0; i < k; ++i)
       for (int32_t j = 0; j < gdim; ++j)
-      {
-        double sum = 0.0;
-        for (int32_t a = 0; a < nn; ++a)
-          sum += nodal[(int64_t)dofs[a * n + p] * k + i] * dN[(a * gdim + j) * n + p];
-        out[(i * gdim + j) * n + p] = sum;
-      }
+        out[(i * gdim + j) * n + p] = G[i][j];
+  }
 }
 
 /* v_interp[p] = sum_a N[a, p] v_node[dofs[a, p]] and the new particle velocity v[p]: v_p + dt
@@ -182,7 +205,7 @@ INLINE void g2p_of(int64_t n, int32_t gdim, const int32_t *restrict dofs, const 
  * (num_nodes), momentum and force (num_nodes, gdim), each holding the sums on entry; the terms
  * and their order are those of scatter and internal_force. */
 INLINE void p2g_of(int64_t n, int32_t gdim, const int32_t *restrict dofs, const double *restrict N,
-                   const double *restrict dN, const double *restrict m, const double *restrict v_p,
+                   const int32_t *restrict cells, const double *restrict grad, const double *restrict m, const double *restrict v_p,
                    const double *restrict sigma, const double *restrict volume, double *restrict mass,
                    double *restrict momentum, double *restrict force)
 {
@@ -191,6 +214,8 @@ INLINE void p2g_of(int64_t n, int32_t gdim, const int32_t *restrict dofs, const 
   double ms[MAX_NODES], mv[MAX_NODES][3], fs[MAX_NODES][3];
   while (p < n)
   {
+    const int32_t cell = cells[p];
+    const double *dN = grad_of(gdim, cells, grad, p);
     cell_of(n, nn, dofs, p, d);
     for (int32_t a = 0; a < nn; ++a)
     {
@@ -201,7 +226,7 @@ INLINE void p2g_of(int64_t n, int32_t gdim, const int32_t *restrict dofs, const 
         fs[a][c] = force[d[a] * gdim + c];
       }
     }
-    for (; p < n && same_cell(n, nn, dofs, p, d); ++p)
+    for (; p < n && cells[p] == cell; ++p)
       for (int32_t a = 0; a < nn; ++a)
       {
         const double N_ap = N[a * n + p];
@@ -236,15 +261,13 @@ void scatter(int64_t n, int32_t nn, const int32_t *dofs, const double *N, int32_
     scatter_of(n, nn, dofs, N, k, values, out);
 }
 
-void internal_force(int64_t n, int32_t gdim, const int32_t *dofs, const double *dN, const double *sigma,
-                    const double *volume, double *out)
+void internal_force(int64_t n, int32_t gdim, const int32_t *dofs, const int32_t *cells, const double *grad,
+                    const double *sigma, const double *volume, double *out)
 {
   if (gdim == 2)
-    internal_force_of(n, 2, dofs, dN, sigma, volume, out);
-  else if (gdim == 3)
-    internal_force_of(n, 3, dofs, dN, sigma, volume, out);
+    internal_force_of(n, 2, dofs, cells, grad, sigma, volume, out);
   else
-    internal_force_of(n, gdim, dofs, dN, sigma, volume, out);
+    internal_force_of(n, 3, dofs, cells, grad, sigma, volume, out);
 }
 
 void interpolate(int64_t n, int32_t nn, const int32_t *dofs, const double *N, int32_t k, const double *nodal,
@@ -256,13 +279,13 @@ void interpolate(int64_t n, int32_t nn, const int32_t *dofs, const double *N, in
     interpolate_of(n, nn, dofs, N, k, nodal, out);
 }
 
-void gradient(int64_t n, int32_t gdim, const int32_t *dofs, const double *dN, int32_t k, const double *nodal,
-              double *out)
+void gradient(int64_t n, int32_t gdim, const int32_t *dofs, const int32_t *cells, const double *grad, int32_t k,
+              const double *nodal, double *out)
 {
   if (k == gdim && (k == 2 || k == 3)) /* the velocity gradient */
-    k == 2 ? gradient_of(n, 2, dofs, dN, 2, nodal, out) : gradient_of(n, 3, dofs, dN, 3, nodal, out);
+    k == 2 ? gradient_of(n, 2, dofs, cells, grad, 2, nodal, out) : gradient_of(n, 3, dofs, cells, grad, 3, nodal, out);
   else
-    gradient_of(n, gdim, dofs, dN, k, nodal, out);
+    gradient_of(n, gdim, dofs, cells, grad, k, nodal, out);
 }
 
 
@@ -291,13 +314,14 @@ void g2p(int64_t n, int32_t gdim, const int32_t *dofs, const double *N, const do
     g2p_of(n, 3, dofs, N, v_node, a_node, v_p, dt, flip, musl, mass, v, v_interp, momenta);
 }
 
-void p2g(int64_t n, int32_t gdim, const int32_t *dofs, const double *N, const double *dN, const double *m,
-         const double *v_p, const double *sigma, const double *volume, double *mass, double *momentum, double *force)
+void p2g(int64_t n, int32_t gdim, const int32_t *dofs, const double *N, const int32_t *cells, const double *grad,
+         const double *m, const double *v_p, const double *sigma, const double *volume, double *mass,
+         double *momentum, double *force)
 {
   if (gdim == 2)
-    p2g_of(n, 2, dofs, N, dN, m, v_p, sigma, volume, mass, momentum, force);
+    p2g_of(n, 2, dofs, N, cells, grad, m, v_p, sigma, volume, mass, momentum, force);
   else
-    p2g_of(n, 3, dofs, N, dN, m, v_p, sigma, volume, mass, momentum, force);
+    p2g_of(n, 3, dofs, N, cells, grad, m, v_p, sigma, volume, mass, momentum, force);
 }
 
 /* The nodal volumetric average of volumetric.py, for velocity gradients L component-first

@@ -33,11 +33,11 @@ _SIGNATURES = {
     name: (ctypes.c_int64, _INT, _NODES, _REAL, *extra, _REAL, _REAL)
     for name, extra in (
         ("scatter", (_INT,)),
-        ("internal_force", (_REAL,)),
         ("interpolate", (_INT,)),
-        ("gradient", (_INT,)),
     )
 }
+_SIGNATURES["internal_force"] = (ctypes.c_int64, _INT, _NODES, _NODES, _REAL, _REAL, _REAL, _REAL)
+_SIGNATURES["gradient"] = (ctypes.c_int64, _INT, _NODES, _NODES, _REAL, _INT, _REAL, _REAL)
 _SIGNATURES["volume_ratio"] = (ctypes.c_int64, _INT, _REAL, ctypes.c_double, _REAL)
 _SIGNATURES["g2p"] = (
     ctypes.c_int64, _INT, _NODES, _REAL, _REAL, _REAL, _REAL, ctypes.c_double, ctypes.c_double, _INT,
@@ -45,7 +45,7 @@ _SIGNATURES["g2p"] = (
 )  # fmt: skip
 _SIGNATURES["volumetric_sums"] = (ctypes.c_int64, _INT, _NODES, *[_REAL] * 6)
 _SIGNATURES["volumetric_correct"] = (ctypes.c_int64, _INT, _NODES, *[_REAL] * 4)
-_SIGNATURES["p2g"] = (ctypes.c_int64, _INT, _NODES, *[_REAL] * 9)
+_SIGNATURES["p2g"] = (ctypes.c_int64, _INT, _NODES, _REAL, _NODES, *[_REAL] * 8)
 _kernels = native.kernels(Path(__file__).with_suffix(".c"), _SIGNATURES)
 _UNUSED = np.zeros(1)  # what a kernel is given for an array it does not read
 
@@ -84,10 +84,12 @@ def internal_force(basis: Basis, sigma: np.ndarray, volume: np.ndarray) -> np.nd
         volume: particle volumes, ``shape=(n,)``.
 
     """
-    gdim = basis.dN.shape[1]
+    gdim = basis.grad_N.shape[2]
     out = np.zeros((basis.num_nodes, gdim))
     sigma = component_first(np.asarray(sigma, dtype=np.float64))  # no copy of component-first memory
-    _kernels().internal_force(len(volume), gdim, basis.dofs, basis.dN, sigma, _as_real(volume), out)
+    _kernels().internal_force(
+        len(volume), gdim, basis.dofs, basis.cells, basis.grad_N, sigma, _as_real(volume), out
+    )
     return out
 
 
@@ -107,12 +109,12 @@ def particles_to_grid(
         volume)``, term for term: ``shape=(num_nodes,)``, ``(num_nodes, gdim)`` twice.
 
     """
-    gdim = basis.dN.shape[1]
+    gdim = basis.grad_N.shape[2]
     m, p, f = np.zeros(basis.num_nodes), np.zeros((basis.num_nodes, gdim)), np.zeros((basis.num_nodes, gdim))
     sigma = component_first(np.asarray(sigma, dtype=np.float64))
     _kernels().p2g(
-        len(mass), gdim, basis.dofs, basis.N, basis.dN, _as_real(mass), _as_real(v), sigma, _as_real(volume),
-        m, p, f,
+        len(mass), gdim, basis.dofs, basis.N, basis.cells, basis.grad_N, _as_real(mass), _as_real(v), sigma,
+        _as_real(volume), m, p, f,
     )  # fmt: skip
     return m, p, f
 
@@ -163,11 +165,13 @@ def interpolate(basis: Basis, nodal: np.ndarray) -> np.ndarray:
 def gradient(basis: Basis, nodal: np.ndarray) -> np.ndarray:
     """Gradient ``L_ij = sum_a nodal_a,i dN_a/dx_j`` at the particles, ``shape=(n, k, gdim)``.
 
-    The result is a particle-first view of component-first memory.
+    The result is a particle-first view of component-first memory; ``k <= 9``.
     """
-    gdim, n = basis.dN.shape[1:]
+    if nodal.shape[1] > 9:
+        raise ValueError(f"gradient: at most 9 components, got {nodal.shape[1]}")
+    gdim, n = basis.grad_N.shape[2], len(basis.cells)
     out = np.empty((nodal.shape[1], gdim, n))
-    _kernels().gradient(n, gdim, basis.dofs, basis.dN, nodal.shape[1], _as_real(nodal), out)
+    _kernels().gradient(n, gdim, basis.dofs, basis.cells, basis.grad_N, nodal.shape[1], _as_real(nodal), out)
     return particle_first(out)
 
 
