@@ -4,8 +4,13 @@
  * its stress and is out of the means); total (num_cells groups) and sums (6 of each) are
  * zeroed scratch. A run of particles of one group (they come in runs where they are ordered
  * by cell) sums in registers: the sums and their order are those of one term at a time. Each
- * group's sums become its mean with one division a component, before the pass that writes them. */
+ * group's sums become its mean with one division a component, before the pass that writes them.
+ * out may be sigma itself. */
 #include <stdint.h>
+#include <string.h>
+
+typedef double v2 __attribute__((vector_size(16)));
+typedef double v4 __attribute__((vector_size(32)));
 
 static const int UPPER[6][2] = {{0, 0}, {0, 1}, {0, 2}, {1, 1}, {1, 2}, {2, 2}};
 
@@ -15,7 +20,7 @@ static inline int64_t group_of(int64_t p, int32_t groups, const int32_t *cell, c
 }
 
 void cell_mean(int64_t n, int64_t num_cells, int32_t groups, const int32_t *restrict cell,
-               const int32_t *restrict material, const double *restrict w, const double *restrict sigma, double *restrict out,
+               const int32_t *restrict material, const double *restrict w, const double *sigma, double *out,
                double *restrict total, double *restrict sums)
 {
   const double *S[6];
@@ -40,20 +45,28 @@ void cell_mean(int64_t n, int64_t num_cells, int32_t groups, const int32_t *rest
   }
   const int64_t size = num_cells * groups;
   for (int64_t k = 0; k < size; ++k) /* each group's mean, one division a component */
-    if (total[k] > 0.0)
-      for (int c = 0; c < 6; ++c)
-        sums[6 * k + c] /= total[k];
-  double *restrict O[9];
+  {
+    const double t = total[k] > 0.0 ? total[k] : 1.0; /* no particle weighs in: sums of 0 */
+    v4 m4;
+    v2 m2;
+    memcpy(&m4, sums + 6 * k, sizeof m4);
+    memcpy(&m2, sums + 6 * k + 4, sizeof m2);
+    m4 /= t; /* four components and two a division (the compiler leaves the scalar loop scalar) */
+    m2 /= t;
+    memcpy(sums + 6 * k, &m4, sizeof m4);
+    memcpy(sums + 6 * k + 4, &m2, sizeof m2);
+  }
+  double *O[9];
   for (int c = 0; c < 9; ++c)
     O[c] = out + c * n;
   for (int64_t q = 0; q < n; ++q)
   {
-    const int64_t k = group_of(q, groups, cell, material);
-    for (int c = 0; c < 6; ++c)
-    {
-      const int a = UPPER[c][0], b = UPPER[c][1];
-      const double mean = w[q] > 0.0 ? sums[6 * k + c] : S[c][q];
-      O[3 * a + b][q] = O[3 * b + a][q] = mean;
-    }
+    const double *mean = sums + 6 * group_of(q, groups, cell, material);
+    if (w[q] > 0.0)
+      for (int c = 0; c < 6; ++c)
+        O[3 * UPPER[c][0] + UPPER[c][1]][q] = O[3 * UPPER[c][1] + UPPER[c][0]][q] = mean[c];
+    else if (out != sigma) /* a kept point: its own stress */
+      for (int c = 0; c < 6; ++c)
+        O[3 * UPPER[c][0] + UPPER[c][1]][q] = O[3 * UPPER[c][1] + UPPER[c][0]][q] = S[c][q];
   }
 }

@@ -29,7 +29,7 @@ _kernels = native.kernels(
 
 def cell_mean_stress(
     sigma: np.ndarray, volume: np.ndarray, cells: np.ndarray, material: np.ndarray, num_cells: int,
-    keep: np.ndarray | None = None,
+    keep: np.ndarray | None = None, in_place: bool = False,
 ) -> np.ndarray:  # fmt: skip
     """The volume-weighted mean stress of each particle's (cell, material) group.
 
@@ -40,14 +40,17 @@ def cell_mean_stress(
         material: each particle's material index, ``shape=(n,)``.
         keep: points left as they are and out of the means (e.g. apart, stress free),
             ``shape=(n,)`` bool; ``None``: none.
+        in_place: write the means into ``sigma`` where it is component-first memory (the step's
+            stresses are): no new array of 72 bytes a particle to fill.
 
     Returns:
-        A new array, ``shape=(n, 3, 3)``, a particle-first view of component-first memory.
+        ``shape=(n, 3, 3)``, a particle-first view of component-first memory: a new array, or
+        ``sigma`` itself.
 
     """
     n = len(volume)
     sigma = component_first(np.asarray(sigma, dtype=np.float64))  # (3, 3, n); no copy if already so
-    out = np.empty_like(sigma)
+    out = sigma if in_place else np.empty_like(sigma)
     if n == 0:
         return particle_first(out)
     groups = int(material.max()) + 1

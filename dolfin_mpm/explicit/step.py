@@ -108,6 +108,9 @@ class Nodal:
         f_int: internal force ``R`` of the start-of-step stresses [N], same shape.
         bcs: the step's boundary conditions: the nodal ones, and each line of rigid walls as
             the :class:`~dolfin_mpm.core.walls.Contact` of the particles over it.
+        mass_dofs, inv_mass_dofs: ``mass`` and ``inv_mass`` for each component,
+            ``shape=(num_nodes * gdim,)``: the nodal solve's arithmetic runs on flat arrays
+            (numpy is slow over rows of 2 or 3).
 
     """
 
@@ -117,6 +120,8 @@ class Nodal:
     f_ext: np.ndarray
     f_int: np.ndarray
     bcs: list
+    mass_dofs: np.ndarray
+    inv_mass_dofs: np.ndarray
 
     def apply_bcs(self, v: np.ndarray) -> None:
         """Correct nodal velocities ``v`` (``shape=(num_nodes, gdim)``) in place."""
@@ -138,14 +143,19 @@ def p2g(
     m, momentum, f_int = particles_to_grid(basis, P.mass, P.v, P.sigma, volume)
     m = grid.assemble(grid.mass, m)
     momentum = grid.assemble(grid.momentum, momentum)
-    grid.f_ext.x.array[:] = (m[:, None] * model.gravity).ravel()  # from the assembled mass
+    f_ext = grid.f_ext.x.array.reshape(-1, grid.gdim)
+    for c in range(grid.gdim):  # from the assembled mass
+        f_ext[:, c] = m * model.gravity[c]
     f_int = grid.assemble(grid.f_int, f_int)
     m_max = grid.comm.allreduce(m.max() if m.size else 0.0, MPI.MAX)
     active = m > model.options.mass_tol * m_max
     inv_m = np.zeros_like(m)
     inv_m[active] = 1.0 / m[active]
     bcs = contacts(model.bcs, grid, P.x, P.mass, basis, m, time)
-    return Nodal(m, inv_m, momentum, grid.f_ext.x.array, f_int.ravel().copy(), bcs)
+    f_int = f_int.ravel().copy()
+    return Nodal(
+        m, inv_m, momentum, grid.f_ext.x.array, f_int, bcs, _per_dof(m, grid.gdim), _per_dof(inv_m, grid.gdim)
+    )
 
 
 def nodal_solve(model: Model, nodal: Nodal, R: np.ndarray, dt: float) -> tuple[np.ndarray, ...]:
@@ -161,20 +171,20 @@ def nodal_solve(model: Model, nodal: Nodal, R: np.ndarray, dt: float) -> tuple[n
 
     """
     gdim, damping = model.grid.gdim, model.options.damping
-    inv_m = nodal.inv_mass[:, None]
-    m = nodal.mass[:, None]
-    v = nodal.momentum * inv_m
-    f = (nodal.f_ext - R).reshape(-1, gdim)
+    inv_m, m = nodal.inv_mass_dofs, nodal.mass_dofs  # flat, as the nodal arrays below
+    v = nodal.momentum.ravel() * inv_m
+    f = nodal.f_ext - R
     v_trial = v + dt * f * inv_m
     v_new = v_trial.copy()
-    nodal.apply_bcs(v_new)
+    nodal.apply_bcs(v_new.reshape(-1, gdim))
     f_contact = m * (v_new - v_trial) / dt
     reactions = {w: f for c in nodal.bcs if isinstance(c, Contact) for w, f in c.forces(dt).items()}
     if damping > 0.0:
         f_out = f + f_contact
         v_new = v + dt * (f_out - damping * np.abs(f_out) * np.sign(v)) * inv_m
-        nodal.apply_bcs(v_new)
-    return v_new, (v_new - v) / dt, f_contact, reactions
+        nodal.apply_bcs(v_new.reshape(-1, gdim))
+    nodal_field = lambda a: a.reshape(-1, gdim)  # noqa: E731
+    return nodal_field(v_new), nodal_field((v_new - v) / dt), nodal_field(f_contact), reactions
 
 
 def g2p(
@@ -204,7 +214,7 @@ def g2p(
         basis, v_node, a_node, P.v, dt, model.options.flip, P.mass if musl else None
     )
     if musl:
-        v_node = grid.assemble(grid.velocity, momenta) * nodal.inv_mass[:, None]
+        v_node = (grid.assemble(grid.velocity, momenta).ravel() * nodal.inv_mass_dofs).reshape(-1, grid.gdim)
         nodal.apply_bcs(v_node)
     L = gradient(basis, v_node)
     if model.options.volumetric == "nodal":
@@ -350,7 +360,9 @@ def advance(model: Model, state: State, timer: Timer) -> None:
     timer.lap("basis")
     constitutive = Constitutive(model.materials, P)
     if options.stress == "cell":  # apart points stay stress free, out of the means
-        P.sigma = cell_mean_stress(P.sigma, P.volume, cells, P.material, grid.num_cells, constitutive.apart)
+        P.sigma = cell_mean_stress(
+            P.sigma, P.volume, cells, P.material, grid.num_cells, constitutive.apart, in_place=True
+        )
         timer.lap("cell_stress")
     weights = lumped = None  # lumped: the particles' volume at the nodes, for both options
     if options.quadrature == "cell" or options.volumetric == "nodal":
@@ -488,6 +500,14 @@ def advance(model: Model, state: State, timer: Timer) -> None:
     state.step += 1
     _check_finite(state)
     timer.lap("move")
+
+
+def _per_dof(a: np.ndarray, gdim: int) -> np.ndarray:
+    """Nodal values ``a`` (``shape=(num_nodes,)``) for each of ``gdim`` components, flat."""
+    out = np.empty((len(a), gdim))
+    for c in range(gdim):  # by columns: np.repeat is slow over a few components
+        out[:, c] = a
+    return out.ravel()
 
 
 def _after(time: float, dt: float) -> float:
