@@ -65,6 +65,24 @@ def test_the_means_keep_materials_apart_and_leave_the_kept_points_out():
                 assert np.allclose(mean[group], np.einsum("p,pij->ij", w, sigma[group]) / w.sum(), atol=1e-9)
 
 
+def test_the_means_in_place_are_the_new_arrays_means_bit_for_bit():
+    """In place (the step's use) the kept points keep their stress; the others take the means."""
+    from dolfin_mpm.materials.tensor import component_first, particle_first
+
+    rng = np.random.default_rng(5)
+    n, num_cells = 300, 40
+    sigma = _noisy(n, rng, 3)
+    volume, cells = rng.uniform(0.5, 1.5, n), np.sort(rng.integers(0, num_cells, n))
+    material = rng.integers(0, 2, n).astype(np.int32)
+    kept = rng.random(n) < 0.2
+    expected = cell_mean_stress(sigma, volume, cells, material, num_cells, kept)
+    own = particle_first(component_first(sigma).copy())  # component-first memory, as the step's
+    out = cell_mean_stress(own, volume, cells, material, num_cells, kept, in_place=True)
+    assert np.shares_memory(out, own)
+    assert np.array_equal(out, expected)
+    assert np.array_equal(out[kept], sigma[kept]) and not np.array_equal(out[~kept], sigma[~kept])
+
+
 def test_the_mean_of_states_inside_the_cone_is_inside_it():
     rng = np.random.default_rng(3)
     phi = np.radians(30.0)

@@ -56,17 +56,27 @@ void cell_mean(int64_t n, int64_t num_cells, int32_t groups, const int32_t *rest
     memcpy(sums + 6 * k, &m4, sizeof m4);
     memcpy(sums + 6 * k + 4, &m2, sizeof m2);
   }
-  double *O[9];
-  for (int c = 0; c < 9; ++c)
-    O[c] = out + c * n;
-  for (int64_t q = 0; q < n; ++q)
+  /* Written a block of particles at a time and, in a block, a component at a time: two output
+   * streams at once, not nine (nine are twice as slow where the particles are not in cell order
+   * and n is a multiple of 512, every stream then in the same cache sets). */
+  enum { BLOCK = 64 };
+  int64_t at[BLOCK];
+  for (int64_t q0 = 0; q0 < n; q0 += BLOCK)
   {
-    const double *mean = sums + 6 * group_of(q, groups, cell, material);
-    if (w[q] > 0.0)
-      for (int c = 0; c < 6; ++c)
-        O[3 * UPPER[c][0] + UPPER[c][1]][q] = O[3 * UPPER[c][1] + UPPER[c][0]][q] = mean[c];
-    else if (out != sigma) /* a kept point: its own stress */
-      for (int c = 0; c < 6; ++c)
-        O[3 * UPPER[c][0] + UPPER[c][1]][q] = O[3 * UPPER[c][1] + UPPER[c][0]][q] = S[c][q];
+    const int64_t m = n - q0 < BLOCK ? n - q0 : BLOCK;
+    for (int64_t q = 0; q < m; ++q) /* where each particle's mean is, -1: its own stress */
+      at[q] = w[q0 + q] > 0.0 ? 6 * group_of(q0 + q, groups, cell, material) : -1;
+    for (int c = 0; c < 6; ++c)
+    {
+      const int a = UPPER[c][0], b = UPPER[c][1];
+      double *lower = out + (3 * b + a) * n + q0, *upper = out + (3 * a + b) * n + q0;
+      const double *own = S[c] + q0; /* the upper triangle: read before it is written, when out is sigma */
+      for (int64_t q = 0; q < m; ++q)
+      {
+        const double mean = at[q] >= 0 ? sums[at[q] + c] : own[q];
+        upper[q] = mean;
+        lower[q] = mean;
+      }
+    }
   }
 }
