@@ -1,9 +1,9 @@
-"""Particle location in the background mesh and P1 basis values and gradients at particles.
+"""Particle location in the background mesh and the P1 basis at the particles.
 
 For speed the basis arrays are component-first (particle axis last): each component is one
-contiguous array over the particles. The loops over the particles are compiled C
-(``locate.c``): the barycentric coordinates in each particle's previous cell, and the gather
-of its cell's nodes and basis gradients, one pass each.
+contiguous array over the particles; the gradients, constant in a cell, stay in the grid's
+table by cell. The loops over the particles are compiled C (``locate.c``): the barycentric
+coordinates in each particle's previous cell, and the gather of its cell's nodes, one pass each.
 """
 
 import ctypes
