@@ -15,7 +15,7 @@ Each run is stored in the results folder (JSON of the numbers, NPZ of the partic
 map time), so studies are resumed rather than repeated:
 
     python demos/demo_silo.py                      # one run, h = 10 mm, r = 5 mm (~40 s)
-    python demos/demo_silo.py --study meshes       # h = 10, 5, 2.5 mm, local and non-local
+    python demos/demo_silo.py --study meshes       # h = 10, 5, 2.5 mm, local and non-local; 1.25 non-local
     python demos/demo_silo.py --study radius       # r = 0, 2.5, 5, 10 mm on one mesh
     python demos/demo_silo.py --study weights      # cubic, constant, Gaussian at r = 5 mm
     python demos/demo_silo.py --study numerics     # the volumetric rate, the stress, the quadrature
@@ -470,7 +470,10 @@ def beverloo(outlet=0.1, rho=SAND["rho"], C=(0.58, 1.5)):
 H_STUDY = 0.005  # the mesh of the radius and weight studies [m]
 MESHES = (0.01, 0.005, 0.0025)  # the meshes of the mesh studies [m]
 STUDIES = {
-    "meshes": [dict(h=h, radius=r) for r in (0.0, 5e-3) for h in (0.01, 0.005, 0.0025)],
+    "meshes": [
+        *(dict(h=h, radius=r) for r in (0.0, 5e-3) for h in (0.01, 0.005, 0.0025)),
+        dict(h=0.00125, radius=5e-3),  # 70 min on two ranks
+    ],
     "radius": [dict(h=H_STUDY, radius=r) for r in (0.0, 2.5e-3, 5e-3, 10e-3)],
     "weights": [dict(h=H_STUDY, radius=5e-3, weight=w) for w in ("cubic", "constant", "gaussian")],
     "friction": [dict(h=0.01, wall_friction=a) for a in (0.0, 10.0, 20.0, 30.0)],
