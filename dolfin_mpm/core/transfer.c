@@ -205,7 +205,8 @@ INLINE void g2p_of(int64_t n, int32_t gdim, const int32_t *restrict dofs, const 
  * (num_nodes), momentum and force (num_nodes, gdim), each holding the sums on entry; the terms
  * and their order are those of scatter and internal_force. */
 INLINE void p2g_of(int64_t n, int32_t gdim, const int32_t *restrict dofs, const double *restrict N,
-                   const int32_t *restrict cells, const double *restrict grad, const double *restrict m, const double *restrict v_p,
+                   const int32_t *restrict cells, const double *restrict grad, const double *restrict m,
+                   const double *restrict v_p,
                    const double *restrict sigma, const double *restrict volume, double *restrict mass,
                    double *restrict momentum, double *restrict force)
 {
@@ -283,7 +284,8 @@ void gradient(int64_t n, int32_t gdim, const int32_t *dofs, const int32_t *cells
               const double *nodal, double *out)
 {
   if (k == gdim && (k == 2 || k == 3)) /* the velocity gradient */
-    k == 2 ? gradient_of(n, 2, dofs, cells, grad, 2, nodal, out) : gradient_of(n, 3, dofs, cells, grad, 3, nodal, out);
+    k == 2 ? gradient_of(n, 2, dofs, cells, grad, 2, nodal, out)
+           : gradient_of(n, 3, dofs, cells, grad, 3, nodal, out);
   else
     gradient_of(n, gdim, dofs, cells, grad, k, nodal, out);
 }
