@@ -930,24 +930,29 @@ def report(folder: Path, path: Path) -> str:
 
 #: What ``docs/silo.json`` gives of each run (lengths in m, the flow rate in kg/s/m).
 JSON_FIELDS = (
-    "h", "radius", "weight", "wall_friction", "law", "shift", "edge_cell", "flow_rate",
-    "edge_band_width", "wall_band_width", "channel_width", "mean_iterations", "max_iterations",
-    "unconverged", "particles", "steps",
+    "h", "radius", "weight", "wall_friction", "law", "shift", "edge_cell", "volumetric", "stress",
+    "quadrature", "flow_rate", "edge_band_width", "wall_band_width", "channel_width", "mean_iterations",
+    "max_iterations", "unconverged", "particles", "steps",
 )  # fmt: skip
+#: The numerics every study but the numerics study runs with (:func:`run`'s defaults).
+NUMERICS = dict(volumetric="nodal", stress="cell", quadrature="cell")
 
 
 def write_json(runs, path: Path) -> None:
-    """The stored runs as ``{"default_law", "runs": [...]}`` in ``path`` (:data:`JSON_FIELDS`).
+    """The stored runs as ``{"default_law", "numerics", "runs", "numerics_runs"}`` in ``path``.
 
-    ``law`` is that of the non-local runs (``"local"`` for r = 0); the velocity band widths are
-    given for the runs that recorded the speed across the bands.
+    Each run gives :data:`JSON_FIELDS`; ``runs`` are those with the default numerics
+    (:data:`NUMERICS`, also given), ``numerics_runs`` the numerics study's others. ``law`` is that
+    of the non-local runs (``"local"`` for r = 0); the velocity band widths are given for the runs
+    that recorded the speed across the bands.
     """
-    rows = []
+    rows = {"runs": [], "numerics_runs": []}
     for r in runs:
-        row = {"channel_width": band_widths(r)["channel"], **r}
+        row = {"channel_width": band_widths(r)["channel"], **NUMERICS, **r}
         row["law"] = r.get("law", "max") if r["radius"] > 0 else "local"
-        rows.append({k: row[k] for k in JSON_FIELDS if row.get(k) is not None})
-    path.write_text(json.dumps({"default_law": "max", "runs": rows}, indent=1))
+        listed = "runs" if all(row[k] == v for k, v in NUMERICS.items()) else "numerics_runs"
+        rows[listed].append({k: row[k] for k in JSON_FIELDS if row.get(k) is not None})
+    path.write_text(json.dumps({"default_law": "max", "numerics": NUMERICS, **rows}, indent=1))
 
 
 def law_lines(runs) -> list[str]:

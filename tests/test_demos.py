@@ -92,9 +92,12 @@ def test_silo_quick_paper_law_and_its_report(tmp_path):
             assert 0.0 < r[f"{band}_band_width"] < 0.1 and 0.0 < r[f"{band}_band_x"] < 0.1
     lines = demo.law_lines(runs)
     assert any(line.startswith("| paper | 20 | wendland | 25 |") for line in lines)
-    demo.write_json(runs, tmp_path / "silo.json")
+    other = {**runs[0], "volumetric": "cell"}  # a run of the numerics study: listed apart
+    demo.write_json([*runs, other], tmp_path / "silo.json")
     data = json.loads((tmp_path / "silo.json").read_text())
     assert data["default_law"] == "max" and [r["law"] for r in data["runs"]] == ["local", "paper"]
+    assert all(r["volumetric"] == data["numerics"]["volumetric"] == "nodal" for r in data["runs"])
+    assert [r["volumetric"] for r in data["numerics_runs"]] == ["cell"]
     assert data["runs"][1]["edge_band_width"] == runs[1]["edge_band_width"]
     assert {"h", "radius", "weight", "wall_friction", "flow_rate", "channel_width"} <= set(data["runs"][0])
 
