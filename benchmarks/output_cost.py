@@ -6,7 +6,9 @@ collective one needs h5py built with MPI: on Debian `apt-get install python3-h5p
 h5py loads under `mpirun`), beside one explicit step, and rank 0's peak memory during the write
 beyond what it held before (numpy's buffers, through `tracemalloc`). The gathered write holds
 every rank's particles on rank 0; the other two hold rank 0's own. Medians over ``--writes``.
-Writes JSON beside the script, one entry per rank count and particle count:
+The same for a checkpoint of the run (`dolfin_mpm.io.checkpoint`), written and read back: its
+write gathers to rank 0 where h5py is serial, and is collective otherwise; each rank reads its
+own part. Writes JSON beside the script, one entry per rank count and particle count:
 
     mpirun -n 2 python benchmarks/output_cost.py [--h 0.002] [--writes 5]
 """
@@ -27,7 +29,8 @@ import h5py
 import numpy as np
 from mpi4py import MPI
 
-from dolfin_mpm.io import xdmf
+from dolfin_mpm.app.scenario import Simulation
+from dolfin_mpm.io import checkpoint, xdmf
 
 sys.path.insert(0, str(Path(__file__).parents[1] / "demos"))
 import demo_silo
@@ -72,6 +75,22 @@ def measure(comm: MPI.Comm, solver, folder: Path, layout: str, writes: int) -> d
     return {"write_s": seconds, "rank0_peak_bytes": peak, "bytes_per_write": comm.bcast(size, root=0)}
 
 
+def measure_checkpoint(comm: MPI.Comm, solver, folder: Path, repeats: int) -> dict:
+    """A checkpoint of the run: write and read time, rank 0's peak memory in each, its size."""
+    sim = Simulation(config={}, solver=solver, walls={}, applied=[])
+    path = folder / "checkpoint.h5"
+
+    def write():
+        checkpoint.write(path, sim, {})
+
+    def read():
+        checkpoint.read(path, comm)
+
+    out = {"write_s": timed(comm, write, repeats), "write_rank0_peak_bytes": peak_bytes(comm, write)}
+    out |= {"read_s": timed(comm, read, repeats), "read_rank0_peak_bytes": peak_bytes(comm, read)}
+    return out | {"bytes": comm.bcast(path.stat().st_size if comm.rank == 0 else None, root=0)}
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--h", type=float, default=0.002, help="cell size [m]")
@@ -88,6 +107,7 @@ def main():
     n = solver.num_particles()
     result = {"ranks": comm.size, "particles": n, "step_s": step}
     result |= {layout: measure(comm, solver, folder, layout, args.writes) for layout in layouts}
+    result["checkpoint"] = measure_checkpoint(comm, solver, folder, args.writes)
     if comm.rank != 0:
         return
     shutil.rmtree(folder)
@@ -102,6 +122,12 @@ def main():
             f"  {layout:<11} {1e3 * r['write_s']:>10.1f} {r['write_s'] / step:>8.2f} "
             f"{r['rank0_peak_bytes'] / 1e6:>17.1f} {r['rank0_peak_bytes'] / n:>11.1f}"
         )
+    c = result["checkpoint"]
+    print(
+        f"  checkpoint: write {1e3 * c['write_s']:.1f} ms, rank 0 peak {c['write_rank0_peak_bytes'] / n:.1f} "
+        f"B/particle; read {1e3 * c['read_s']:.1f} ms, rank 0 peak {c['read_rank0_peak_bytes'] / n:.1f} "
+        f"B/particle; {c['bytes'] / n:.1f} B/particle on disk"
+    )
     if "collective" not in layouts:
         print("  h5py here is a serial build: the collective layout is not measured")
 

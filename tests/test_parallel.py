@@ -381,6 +381,37 @@ def test_resume_on_another_number_of_ranks_continues_to_round_off(tmp_path, caps
         assert resharded["attrs/ranks"] == comm.size
 
 
+def test_each_rank_reads_its_own_part_of_a_checkpoint_and_whole_groups_on_another_number(tmp_path):
+    """A checkpoint of N ranks: each rank writes and reads its own group; on fewer ranks, rank r
+    of M takes the groups r, r + M, ...; every rank gets all nodes, and the sinks' totals add up."""
+    from dolfin_mpm.io import checkpoint
+
+    folder = comm.bcast(tmp_path, root=0)
+    path = folder / "fall.toml"
+    if comm.rank == 0:
+        path.write_text(SCENARIO)
+    comm.Barrier()
+    assert main(["run", str(path), "--quiet", "--output", str(folder / "run"), "--set", "time.end=0.03"]) == 0
+    file = folder / "run" / "checkpoint.h5"
+    with h5py.File(file, "r") as f:
+        counts = [len(f[f"rank{r}/particles/mass"]) for r in range(comm.size)]
+        nodes = sum(len(f[f"rank{r}/nodes"]) for r in range(comm.size))
+        sunk = sum(float(f[f"rank{r}/sinks/below/mass"][()]) for r in range(comm.size))
+    assert sum(counts) > 0 and sunk > 0.0
+    mine = checkpoint.read(file, comm)
+    assert len(mine["particles"]["mass"]) == counts[comm.rank] and mine["attrs"]["ranks"] == comm.size
+    if comm.size == 1:
+        return
+    last = comm.rank == comm.size - 1
+    fewer = comm.Split(int(last))  # the first N - 1 ranks, and the last alone
+    part = checkpoint.read(file, fewer)
+    taken = range(fewer.rank, comm.size, fewer.size)
+    assert len(part["particles"]["mass"]) == sum(counts[g] for g in taken) and part["resharded"]
+    assert len(part["nodes"]) == nodes and part["R_changes"].shape[1] == nodes * 2
+    assert fewer.allreduce(float(part["sinks"]["below"]["mass"])) == pytest.approx(sunk, rel=1e-14)
+    fewer.Free()
+
+
 def checkpoint_state(path) -> dict:
     """Every rank's part of a checkpoint and its attributes, flattened (not the history)."""
     out = {}

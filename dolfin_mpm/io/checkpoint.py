@@ -5,12 +5,15 @@ and the material state included, the sinks' records, the non-local average's ref
 positions and on several ranks its halo, the last changes of the internal forces; for the run:
 time, step, time step and the fixed-point counters) and the scenario's own: the events applied
 and the recorded history. The owned nodes' coordinates are stored to refuse a checkpoint of
-another grid or partition. Rank 0 gathers and writes it under
-a temporary name, flushes it to disk and renames it over the previous checkpoint, so that a
-crash at any moment leaves the last complete one. Restoring it into a freshly built scenario
-continues the run bit for bit on the same number of ranks. On another number, the particles go
-to the owners of their cells on the new partition and the non-local pair lists are built anew:
-the run continues to round-off (the sums are taken in another order).
+another grid or partition. Each rank's part is a group of its own: where h5py has MPI each rank
+writes it through MPI-IO, otherwise rank 0 gathers them; each rank reads its own. The file is
+written under a temporary name, flushed to disk and renamed over the previous checkpoint, so
+that a crash at any moment leaves the last complete one. Each group carries the SHA-256 of its
+arrays and the file that of its attributes and the groups' checksums. Restoring it into a
+freshly built scenario continues the run bit for bit on the same number of ranks. On another
+number, each rank takes whole groups, the particles go to the owners of their cells on the new
+partition and the non-local pair lists are built anew: the run continues to round-off (the sums
+are taken in another order).
 """
 
 import hashlib
@@ -31,7 +34,7 @@ from dolfin_mpm.parallel.migration import migrate
 __all__ = ["FORMAT", "RESUMABLE", "CheckpointError", "read", "restore", "scenario_record", "write"]
 
 #: Layout version, stored in the file.
-FORMAT = 5
+FORMAT = 6
 #: Scenario keys a resumed run may change (the end time and the output, not the physics).
 RESUMABLE = ("time.end", "output.")
 
@@ -55,8 +58,20 @@ def _write_tree(group: h5py.Group, tree: dict) -> None:
             group.create_dataset(name, data=value)
 
 
-def _read_tree(group: h5py.Group) -> dict:
-    return {k: _read_tree(v) if isinstance(v, h5py.Group) else v[()] for k, v in group.items()}
+def _read_tree(group: h5py.Group, rows: int | None = None, keys=None) -> dict:
+    """The arrays under ``group`` (its members ``keys``, default all) as nested dicts.
+
+    With ``rows``, only the first ``rows`` of each.
+    """
+
+    def value(d: h5py.Dataset) -> np.ndarray:
+        return d[()] if rows is None or d.ndim == 0 else d[:rows]
+
+    members = group.keys() if keys is None else keys
+    return {
+        k: _read_tree(group[k], rows) if isinstance(group[k], h5py.Group) else value(group[k])
+        for k in members
+    }
 
 
 def _digest(attrs: dict, tree: dict) -> str:
@@ -102,6 +117,9 @@ def scenario_record(config: dict) -> str:
 def write(path, sim, history: dict[str, np.ndarray]) -> None:
     """Write the checkpoint of ``sim`` to ``path`` atomically (collective).
 
+    Each rank's part is the group ``rank<r>``; where h5py has MPI, every rank writes its own
+    into the file through MPI-IO, otherwise rank 0 gathers and writes them all.
+
     Args:
         path: the checkpoint file; a file of that name is replaced only once the new one is
             complete on disk.
@@ -113,36 +131,57 @@ def write(path, sim, history: dict[str, np.ndarray]) -> None:
 
     """
     comm = sim.solver.comm
-    parts = comm.gather(_local_state(sim), root=0)
-    partition = sim.solver.grid.partition
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    part, partition = _local_state(sim), sim.solver.grid.partition
+    attrs = {
+        "format": FORMAT,
+        "ranks": comm.size,
+        "applied": np.array(sim.applied, dtype=np.int64),
+        "scenario": scenario_record(sim.config),
+        "repartitioned": partition is not None,
+        **sim.solver.state.scalars(),
+    }
+    # On rank 0: the parts all ranks share (the cells as they were dealt, to deal them again).
+    shared = {"history": history}
+    if partition is not None and comm.rank == 0:
+        shared["partition"] = dict(zip(("cells", "ranks"), partition))
+    collective = comm.size > 1 and h5py.get_config().mpi
+    parts = [part] if collective else comm.gather(part, root=0)
+    nbytes = comm.allreduce(tree_bytes(part)) + tree_bytes(shared)
     error = None
     if comm.rank == 0:
-        path = Path(path)
-        tmp = path.with_name(path.name + ".tmp")
         try:
-            ensure_room(path.parent, tree_bytes([parts, history]))
-            with h5py.File(tmp, "w") as f:
-                attrs = {
-                    "format": FORMAT,
-                    "ranks": comm.size,
-                    "applied": np.array(sim.applied, dtype=np.int64),
-                    "scenario": scenario_record(sim.config),
-                    "repartitioned": partition is not None,
-                    **sim.solver.state.scalars(),
-                }
-                ranks = {f"rank{rank}": part for rank, part in enumerate(parts)}
-                if partition is not None:  # the cells dealt anew during the run: to deal them again
-                    ranks["partition"] = dict(zip(("cells", "ranks"), partition))
-                f.attrs.update(attrs, sha256=_digest(attrs, ranks))  # the state, and apart ...
-                _write_tree(f, {**ranks, "history": history})
-                f["history"].attrs["sha256"] = _digest({}, history)  # ... what the run recorded
+            ensure_room(path.parent, nbytes)
+        except OSError as e:
+            error = str(e)
+    error = comm.bcast(error, root=0)
+    if error is None:
+        try:
+            if collective:
+                _write_collective(tmp, comm, attrs, part, shared)
+            elif comm.rank == 0:
+                tree = {**{f"rank{r}": p for r, p in enumerate(parts)}, **shared}
+                digests = {name: _digest({}, t) for name, t in tree.items()}
+                with h5py.File(tmp, "w") as f:
+                    f.attrs.update(attrs, sha256=_seal(attrs, digests))
+                    for name, t in tree.items():
+                        _write_tree(f.create_group(name), t)
+                        f[name].attrs["sha256"] = digests[name]
+        except (OSError, RuntimeError, ValueError) as e:
+            error = str(e)
+    errors = [e for e in comm.allgather(error) if e]
+    if comm.rank == 0:
+        try:
+            if errors:
+                raise OSError(errors[0])
             fd = os.open(tmp, os.O_RDONLY)
             try:
                 os.fsync(fd)
             finally:
                 os.close(fd)
             os.replace(tmp, path)
-        except (OSError, RuntimeError) as e:
+        except OSError as e:
             tmp.unlink(missing_ok=True)
             kept = "the previous checkpoint is intact" if path.exists() else "no earlier checkpoint exists"
             error = f"writing the checkpoint {path} failed ({e}); {kept}"
@@ -151,54 +190,133 @@ def write(path, sim, history: dict[str, np.ndarray]) -> None:
         raise CheckpointError(error)
 
 
+def _write_collective(tmp: Path, comm, attrs: dict, part: dict, shared: dict) -> None:
+    """Every rank writes its ``part`` into ``rank<r>`` of one file through MPI-IO; rank 0 ``shared``.
+
+    HDF5 makes the groups, datasets and attributes together on all ranks (their shapes and
+    checksums are exchanged first); the data then goes in from each rank alone.
+    """
+    layouts = comm.allgather(_layout(part))
+    digests = comm.allgather(_digest({}, part))
+    shared_layout, shared_digests = comm.bcast(
+        ({k: _layout(t) for k, t in shared.items()}, {k: _digest({}, t) for k, t in shared.items()})
+        if comm.rank == 0
+        else None,
+        root=0,
+    )
+    groups = {**{f"rank{r}": layout for r, layout in enumerate(layouts)}, **shared_layout}
+    checksums = {**{f"rank{r}": d for r, d in enumerate(digests)}, **shared_digests}
+    with h5py.File(tmp, "w", driver="mpio", comm=comm) as f:
+        f.attrs.update(attrs, sha256=_seal(attrs, checksums))
+        for name, layout in groups.items():
+            group = f.create_group(name)
+            group.attrs["sha256"] = checksums[name]
+            for key, (shape, dtype) in layout.items():
+                group.create_dataset(key, shape, dtype)
+        mine = {f"rank{comm.rank}": part, **(shared if comm.rank == 0 else {})}
+        for name, tree in mine.items():
+            for key, value in _leaves(tree):
+                if np.size(value):
+                    f[name][key][...] = value
+
+
+def _leaves(tree: dict, prefix: str = ""):
+    """``(path, array)`` of every array in ``tree``, ``path`` like ``particles/state/eps``."""
+    for name, value in tree.items():
+        if isinstance(value, dict):
+            yield from _leaves(value, f"{prefix}{name}/")
+        else:
+            yield prefix + name, np.asarray(value)
+
+
+def _layout(tree: dict) -> dict:
+    """``{path: (shape, dtype)}`` of the arrays of ``tree`` (:func:`_leaves`)."""
+    return {key: (a.shape, a.dtype.str) for key, a in _leaves(tree)}
+
+
+def _seal(attrs: dict, digests: dict[str, str]) -> str:
+    """SHA-256 of the attributes and of the checksums of the state's groups.
+
+    Not of the history's: a resumed run records it anew, and it carries its own.
+    """
+    state = {name: np.frombuffer(d.encode(), np.uint8) for name, d in digests.items() if name != "history"}
+    return _digest(attrs, state)
+
+
 def read(path, comm) -> dict:
     """The part of the checkpoint for this rank at ``path`` and the run's attributes (collective).
+
+    Every rank opens the file and reads its own part. On the same number of ranks as the
+    checkpoint's that is its group ``rank<r>``, and after a run that dealt its cells anew rank 0
+    also gets their ``partition``. On another number, rank r takes the groups r, r + N, ...
+    (N ranks) merged into one part (:func:`_merged`: the particles and the sinks' and the
+    dissipation's totals), and every rank all nodes with their ``R_changes``: :func:`restore`
+    then hands the particles to the owners of their cells. No rank holds more particles than
+    the groups it takes.
 
     Returns:
         ``{"attrs": ..., "history": ..., "nodes": ...}`` and this rank's part of the state
         (see :meth:`State.tree <dolfin_mpm.explicit.state.State.tree>`).
 
-    On another number of ranks than the checkpoint's, rank 0 gets every particle and the
-    sinks' and the dissipation's totals, the others none, and every rank all nodes with their
-    ``R_changes``: :func:`restore` then hands the particles to their owners. On the same
-    number, after a run that dealt its cells anew, rank 0 also gets their ``partition``.
-
     Raises:
-        CheckpointError: missing, unreadable or corrupted file (its checksum or its values), or
+        CheckpointError: missing, unreadable or corrupted file (its checksums or its values), or
             of another format.
 
     """
-    parts, error = None, None
-    if comm.rank == 0:
-        try:
-            with h5py.File(path, "r") as f:
-                attrs = dict(f.attrs)
-                if attrs.get("format") != FORMAT:
-                    raise CheckpointError(
-                        f"{path}: written in format {attrs.get('format')}; this version reads format {FORMAT}"
-                    )
-                tree = _read_tree(f)
-                history_sha = f["history"].attrs.get("sha256")
-            history = tree.pop("history")
-            if _digest(attrs, tree) != attrs.get("sha256") or _digest({}, history) != history_sha:
-                raise CheckpointError(f"{path} is corrupted: its checksum does not match its contents")
-            written = int(attrs["ranks"])
-            _check_values(attrs, tree, written)
-            ranks = [tree[f"rank{r}"] for r in range(written)]
-            if written != comm.size:
-                whole = _merged(ranks)
-                ranks = [whole, *[_emptied(whole) for _ in range(comm.size - 1)]]
-            elif "partition" in tree:
-                ranks[0] = {**ranks[0], "partition": tree["partition"]}
-            parts = [{"attrs": attrs, "history": history, **part} for part in ranks]
-        except CheckpointError as e:
-            error = str(e)
-        except Exception as e:
-            error = f"cannot read the checkpoint {path} ({type(e).__name__}: {e})"
-    error = comm.bcast(error, root=0)
-    if error:
-        raise CheckpointError(error)
-    return comm.scatter(parts, root=0)
+    data, error = None, None
+    try:
+        with h5py.File(path, "r") as f:
+            data = _read_part(f, path, comm)
+    except CheckpointError as e:
+        error = str(e)
+    except Exception as e:
+        error = f"cannot read the checkpoint {path} ({type(e).__name__}: {e})"
+    errors = [e for e in comm.allgather(error) if e]
+    if errors:
+        raise CheckpointError(errors[0])
+    return data
+
+
+def _read_part(f: h5py.File, path, comm) -> dict:
+    """The part of the open checkpoint ``f`` for this rank, checksums and values checked (:func:`read`)."""
+    attrs = dict(f.attrs)
+    if attrs.get("format") != FORMAT:
+        raise CheckpointError(
+            f"{path}: written in format {attrs.get('format')}; this version reads format {FORMAT}"
+        )
+    corrupted = CheckpointError(f"{path} is corrupted: its checksum does not match its contents")
+    if _seal(attrs, {name: f[name].attrs.get("sha256", "") for name in f}) != attrs.get("sha256"):
+        raise corrupted
+
+    def checked(name: str) -> dict:
+        tree = _read_tree(f[name])
+        if _digest({}, tree) != f[name].attrs["sha256"]:
+            raise corrupted
+        return tree
+
+    _check_attrs(attrs)
+    written = int(attrs["ranks"])
+    history = checked("history")
+    taken = [comm.rank] if written == comm.size else list(range(comm.rank, written, comm.size))
+    parts = []
+    for r in taken:
+        parts.append(checked(f"rank{r}"))
+        _check_part(parts[-1], r)
+    if written == comm.size:
+        part = parts[0]
+        if "partition" in f and comm.rank == 0:
+            part["partition"] = checked("partition")
+    else:
+        every = [f[f"rank{r}"] for r in range(written)]  # each checked by the rank that takes it
+        if not parts:  # none for this rank: the first's structure without its particles
+            g = every[0]
+            keys = ("sinks", "R_changes", "dissipated", "nodes")
+            parts = [{"particles": _read_tree(g["particles"], rows=0), **_read_tree(g, keys=keys)}]
+            parts[0] = _emptied(parts[0])
+        part = _merged(parts)
+        part["nodes"] = np.concatenate([g["nodes"][()] for g in every])
+        part["R_changes"] = np.concatenate([g["R_changes"][()] for g in every], axis=1)
+    return {"attrs": attrs, "history": history, **part}
 
 
 def _merged(ranks: list[dict]) -> dict:
@@ -252,25 +370,31 @@ def _emptied(whole: dict) -> dict:
     return {**whole, "particles": particles, "sinks": sinks, "dissipated": np.zeros(())}
 
 
-def _check_values(attrs: dict, tree: dict, ranks: int) -> None:
+def _check_attrs(attrs: dict) -> None:
     """Refuse values no run writes: a checksum recomputed after an edit does not make them good."""
-
-    def bad(what: str):
-        return CheckpointError(f"the checkpoint is corrupted: {what}")
-
     if not (math.isfinite(attrs["time"]) and math.isfinite(attrs["dt"]) and attrs["dt"] > 0.0):
-        raise bad(f"time {attrs['time']!r}, time step {attrs['dt']!r}")
+        raise CheckpointError(
+            f"the checkpoint is corrupted: time {attrs['time']!r}, time step {attrs['dt']!r}"
+        )
     if not (attrs["step"] >= 0 and np.all(np.asarray(attrs["fixed_point"]) >= 0)):
-        raise bad(f"step {attrs['step']!r}, loop counters {attrs['fixed_point']!r}")
-    for r in range(ranks):
-        particles = tree[f"rank{r}"]["particles"]
-        n = len(particles["mass"])
-        arrays = [a for k, a in particles.items() if k != "state"] + list(particles.get("state", {}).values())
-        if any(np.shape(a)[:1] != (n,) for a in arrays):
-            raise bad(f"rank {r}'s particle arrays differ in length")
-        real = [particles[k] for k in ("x", "v", "sigma", "mass", "volume")]
-        if not all(np.all(np.isfinite(a)) for a in real) or np.any(particles["volume"] <= 0.0):
-            raise bad(f"rank {r} holds a particle with a non-finite value or a non-positive volume")
+        raise CheckpointError(
+            f"the checkpoint is corrupted: step {attrs['step']!r}, loop counters {attrs['fixed_point']!r}"
+        )
+
+
+def _check_part(part: dict, r: int) -> None:
+    """Refuse particle arrays of unequal length, non-finite values or non-positive volumes of rank ``r``."""
+    particles = part["particles"]
+    n = len(particles["mass"])
+    arrays = [a for k, a in particles.items() if k != "state"] + list(particles.get("state", {}).values())
+    if any(np.shape(a)[:1] != (n,) for a in arrays):
+        raise CheckpointError(f"the checkpoint is corrupted: rank {r}'s particle arrays differ in length")
+    real = [particles[k] for k in ("x", "v", "sigma", "mass", "volume")]
+    if not all(np.all(np.isfinite(a)) for a in real) or np.any(particles["volume"] <= 0.0):
+        raise CheckpointError(
+            f"the checkpoint is corrupted: rank {r} holds a particle with a non-finite value or a "
+            "non-positive volume"
+        )
 
 
 def restore(sim, data: dict) -> None:
