@@ -19,7 +19,8 @@ viscoplastic strain, the non-local rate e_vp_bar (time-averaged), both by their 
 at half maximum (FWHM), and the mean horizontal velocity, by the distance over which it
 rises from 10 % to 90 % of the plate speed.
 
-    python demos/demo_shear_band.py [--cells 10 20 40] [--radius 4e-3] [--output results/shear_band]
+    python demos/demo_shear_band.py [--cells 10 20 40] [--radius 4e-3] [--weight wendland --law overstress]
+                                    [--output results/shear_band]
 """
 
 import argparse
@@ -198,11 +199,12 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0].lstrip("# "))
     parser.add_argument("--cells", type=int, nargs="+", default=[10, 20, 40], help="cells across H")
     parser.add_argument("--radius", type=float, default=4e-3, help="non-local radius r [m]")
-    parser.add_argument("--weight", default="cubic", choices=["cubic", "constant", "gaussian"])
+    parser.add_argument("--weight", default="cubic", choices=list(dm.averaging.WEIGHTS))
+    parser.add_argument("--law", default="max", choices=list(dm.averaging.LAWS), help="the non-local law")
     parser.add_argument("--output", type=Path, default=Path("results/shear_band"))
     args = parser.parse_args()
     args.output.mkdir(parents=True, exist_ok=True)
-    results = study(args.cells, args.radius, args.weight)
+    results = study(args.cells, args.radius, args.weight, law=args.law)
     text = table(results)
     print(text)
     (args.output / "widths.txt").write_text(text + "\n")

@@ -158,6 +158,7 @@ def serial_silo_run(law="max", quadrature="particle"):
         ("strips", "max", "particle"),
         ("dolfinx", "max", "particle"),
         ("dolfinx", "paper", "particle"),
+        ("dolfinx", "overstress", "particle"),
         ("dolfinx", "max", "cell"),
         ("rebalance", "max", "particle"),
     ],

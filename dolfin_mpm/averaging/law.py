@@ -12,27 +12,32 @@ in how it acts:
   end-of-step stresses): ``u_i = c Phi(x_i(q_trial,i - 2 G d_i))``. A point at its cone's
   apex is stress free (``d_i >= q_trial,i / 2G``) and takes the rate its neighbourhood needs.
 - ``"overstress"``: the averaged variable is inside the overstress function,
-  ``d_i = c Phi(A x)_i``, ``q_i = q_trial,i - 2 G d_i`` (a non-local yield rule, Strömberg &
-  Ristinmaa 1996); ``x = q / y - 1`` is signed, so points below the cone lower their
-  neighbours' overstress, and is 0 at the apex (``y <= 0``, where a point is stress free).
+  ``d_i = c <(A f)_i / y_i>^N``, ``q_i = q_trial,i - 2 G d_i`` (a non-local yield rule,
+  Strömberg & Ristinmaa 1996): the yield function ``f = q - y`` [Pa] of the end states is
+  averaged and taken relative to the point's own yield value ``y``. ``f`` is signed, so points
+  below the cone lower their neighbours' overstress; a point at the apex (``y <= 0``) is stress
+  free, ``f = -y``. (Averaging the relative overstress ``q / y - 1`` instead let the points
+  near a free surface, where ``y -> 0``, swamp their neighbours' averages.)
 
-The last two couple every point to its neighbours through its end state. The paper's law is
-a complementarity problem in the rates, solved in each iterate of the step's loop by
-semismooth Newton (:mod:`dolfin_mpm.averaging.complementarity`); the loop then iterates the
-internal forces alone. Both need a positive-definite weight: with it ``A`` is a P-matrix and
-the paper's law has one solution. Wendland's weight is (the least eigenvalue of the average on
-a lattice of spacing r/2 is +0.20; cubic -0.04, Gaussian -0.03, constant -0.33), and the laws
-take it alone (:data:`dolfin_mpm.averaging.nonlocal_average.WEIGHTS`).
+The last two couple every point to its neighbours through its end state, and each iterate of
+the step's loop solves them by a Newton method (semismooth, projected) with the trial states
+fixed; the loop then iterates the internal forces alone. The paper's law is a complementarity
+problem in the rates (:mod:`dolfin_mpm.averaging.complementarity`); the overstress law is
+solved in the end states' overstress (:mod:`dolfin_mpm.averaging.overstress`). Both need a
+positive-definite weight: with it ``A`` is a P-matrix, the paper's law has one solution and the
+overstress law's Newton systems are invertible. Wendland's weight is (the least eigenvalue of
+the average on a lattice of spacing r/2 is +0.20; cubic -0.04, Gaussian -0.03, constant -0.33),
+and the laws take it alone
+(:data:`dolfin_mpm.averaging.nonlocal_average.WEIGHTS`).
 
-The overstress law is iterated as a correction ``dq`` of the trial ``q`` [Pa] that each
-point's own return takes, ``d = return(q_trial + dq)``, ``dq = y (A x - x)`` (``return`` is the
-material's backward-Euler increment with the trial ``q`` replaced), together with the internal
-forces under the loop's Anderson acceleration. Linearised, one pass maps an error ``e`` of
-``dq`` to ``(I - A) B e``, ``B = diag(a / (1 + a))``, ``a = 3 G gamma dt / y``: a contraction if
-``A`` has no negative eigenvalue, but one that approaches 1 where ``a`` is large and r spans
-many particles (``lambda_min`` of Wendland's average is 0.20, 0.026, 0.005 at 2, 3, 4
-spacings). That is why the paper's law, iterated this way, left steps unconverged (807 of
-4576 with r = 10 mm on the silo's 5 mm mesh; ``docs/numerics.md``) and is now solved directly.
+Both were first iterated as a correction of the trial ``q`` together with the internal forces
+under the loop's Anderson acceleration. Linearised, one pass maps an error ``e`` of the
+correction to ``(I - A) B e``, ``B = diag(a / (1 + a))``, ``a = 3 G gamma dt / y``: a
+contraction if ``A`` has no negative eigenvalue, but one that approaches 1 where ``a`` is large
+and r spans many particles (``lambda_min`` of Wendland's average is 0.20, 0.026, 0.005 at 2, 3,
+4 spacings). It left steps unconverged: 807 of 4576 with the paper's law and r = 10 mm on the
+silo's 5 mm mesh, 109 of the shear band's with the overstress law on h = 1 mm
+(``docs/numerics.md``).
 
 The over-non-local mix ``d = m A u + (1 - m) u``, ``m > 1`` (Vermeer & Brinkgreve 1994), is
 not among them: written the same way its iteration stalls at a relative change of 1e-2,
@@ -42,12 +47,10 @@ rate the corrected return does not give.
 
 from dataclasses import dataclass
 
-import numpy as np
-
 __all__ = ["LAWS", "NonlocalLaw"]
 
-#: The laws and what each averages: the rate (``max``, ``paper``) or the relative overstress
-#: (``overstress``).
+#: The laws and what each averages: the rate (``max``, ``paper``) or the overstress
+#: ``q - y`` [Pa] (``overstress``).
 LAWS = ("max", "paper", "overstress")
 
 
@@ -70,18 +73,3 @@ class NonlocalLaw:
     def iterative(self) -> bool:
         """Whether the law couples the end states (all but ``"max"``): the loop iterates it."""
         return self.name != "max"
-
-    def correction(self, average, d, q_trial, two_G, y) -> np.ndarray:
-        """The overstress law's next correction ``dq`` [Pa] of the trial ``q``, ``shape=(n,)``.
-
-        Args:
-            average: the non-local average ``A`` (a callable on particle fields).
-            d: the applied increments [-], the returns of the corrected trials.
-            q_trial: the trial ``q`` [Pa].
-            two_G: 2 G of each point [Pa].
-            y: the yield value of ``q`` of each point [Pa] (``<= 0`` at the apex).
-
-        """
-        q = np.maximum(q_trial - two_G * d, 0.0)
-        x = np.divide(q, y, out=np.ones_like(q), where=y > 0.0) - 1.0  # 0 at the apex
-        return np.where(y > 0.0, y * (average(x) - x), 0.0)

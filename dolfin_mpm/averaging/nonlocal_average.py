@@ -371,6 +371,14 @@ class NonlocalAverage:
             self._set_denominator(self._apply(self._volume))
         return self._denominator
 
+    @property
+    def metric(self) -> np.ndarray:
+        """``G_i = V_i D_i``, ``shape=(n,)``: the average is self-adjoint in ``<u, v> = sum_i G_i u_i v_i``.
+
+        (``G A = V W V``, plus the diagonal of the missing weights with ``boundary_correction``.)
+        """
+        return self._volume * self.denominator
+
     def _set_denominator(self, D: np.ndarray) -> None:
         if self.boundary_correction:
             full = ball_weight(self.weight, self.radius, self._x_slot.shape[1])

@@ -87,10 +87,13 @@ class Solver:
         particles.ensure_state({k: v for m in materials for k, v in m.state_fields().items()})
         if averaging is not None and averaging.law.iterative:
             needs, what = {
-                "overstress": ("yield_value", "a yield value of q"),
+                "overstress": ("perzyna", "a Perzyna law of finite viscosity"),
                 "paper": ("increment_of_rate", "the increment of a given rate (a viscous law)"),
             }[averaging.law.name]
             lacking = [type(m).__name__ for m in materials if m.plastic and not hasattr(m, needs)]
+            if needs == "perzyna":  # the rate-independent limit has no overstress to average
+                lacking += [f"{type(m).__name__} with gamma = inf" for m in materials
+                            if hasattr(m, needs) and not math.isfinite(m.perzyna(1.0)[0])]  # fmt: skip
             if lacking:
                 raise ValueError(f"the {averaging.law.name} law needs {what}, which {lacking} do not give")
             particles.ensure_state({CORRECTION: ()})

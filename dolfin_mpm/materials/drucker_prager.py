@@ -169,6 +169,13 @@ class DruckerPragerViscoplastic(RadialReturn):
             dx_du = w ** (1.0 / self.N - 1.0) / (self.N * c)
         return (trial.q - y * (1.0 + x)) / two_G, y * dx_du / two_G
 
+    def perzyna(self, dt: float) -> tuple[float, float]:
+        """``c = 3/2 gamma dt`` [-] and ``N`` of the Perzyna law ``u = c <q / y - 1>^N`` of a step.
+
+        The overstress law's solver uses them (:mod:`dolfin_mpm.averaging.overstress`).
+        """
+        return 1.5 * self.gamma * dt, self.N
+
     def yield_value(self, trial: Trial) -> np.ndarray:
         """The yield value of ``q`` at the trial pressure, ``m (p + c cot(phi))`` [Pa], ``shape=(n,)``."""
         return self.m * (trial.p + self.tension_limit)

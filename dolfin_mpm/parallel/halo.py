@@ -58,6 +58,11 @@ class DistributedAverage:
         self.halo_seconds += time.perf_counter() - start
         return self.average(e)[: self.n]
 
+    @property
+    def metric(self) -> np.ndarray:
+        """The wrapped average's metric of this rank's particles (its halo's left out)."""
+        return self.average.metric[: self.n]
+
     def state(self) -> dict:
         """The wrapped average's :meth:`~NonlocalAverage.state`, and the halo's under ``"halo"``."""
         state = self.average.state()
