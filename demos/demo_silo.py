@@ -494,8 +494,12 @@ STUDIES = {
     # The non-local laws with the positive-definite weight beside the local model.
     "laws": [
         *(dict(h=h, radius=0.0) for h in MESHES),
-        *(dict(h=h, radius=5e-3, weight="wendland", law=law) for law in ("max", "paper") for h in MESHES),
-        *(dict(h=h, radius=10e-3, weight="wendland", law="paper") for h in MESHES),
+        *(dict(h=h, radius=5e-3, weight="wendland", law=law) for law in LAWS for h in MESHES),
+        *(
+            dict(h=h, radius=10e-3, weight="wendland", law=law)
+            for law in ("paper", "overstress")
+            for h in MESHES
+        ),
     ],
 }
 ARRAYS = (

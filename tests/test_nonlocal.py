@@ -53,6 +53,17 @@ def test_uniform_field_and_normalisation(weight):
     assert np.all(a >= e.min() - 1e-15) and np.all(a <= e.max() + 1e-15)
 
 
+@pytest.mark.parametrize("boundary_correction", [False, True])
+def test_the_average_is_self_adjoint_in_its_metric(boundary_correction):
+    """What the overstress law's solver needs: ``G A`` symmetric."""
+    x, volume, _ = cloud(120, 2, seed=3)
+    avg = NonlocalAverage(0.2, "wendland", boundary_correction=boundary_correction)
+    avg.update(x, volume, np.arange(len(x)))
+    A = np.column_stack([avg(column) for column in np.eye(len(x))])
+    GA = avg.metric[:, None] * A
+    assert np.allclose(GA, GA.T, rtol=0.0, atol=1e-13 * np.abs(GA).max())
+
+
 def test_weight_functions():
     """Two particles of equal volume at s = distance / r: the first's average of (1, 0) is 1 / (1 + w(s))."""
     w = {}
