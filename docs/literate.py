@@ -23,6 +23,7 @@ from pathlib import Path
 
 #: The figures in docs/images that each demo writes (or that are rendered from its output).
 FIGURES = {
+    "demo_column_collapse": ["column_collapse_a1.png"],
     "demo_elastic_bar": ["elastic_bar.png"],
     "demo_cylinder": ["fe_cylinder.png"],
     "demo_footing": ["fe_footing.png"],

@@ -177,3 +177,37 @@ def test_silo_runs_record_the_code_that_made_them(tmp_path, capsys):
         demo.code_line(runs)
         == f"Code of the stored runs: 1 by {now} (this code), 1 by not recorded; this code is {now}."
     )
+
+
+def test_column_collapse_quick_mesh_study(tmp_path, monkeypatch, capsys):
+    """The collapse study on two coarse meshes, cut short: the front has left the gate on both,
+    the deposit is lower than the column, and the study's table, JSON and figure are written."""
+    demo = load("demo_column_collapse")
+    argv = ["demo", "--aspect", "1", "--h", "0.02", "0.01", "--t-end", "0.15", "--output", str(tmp_path)]
+    monkeypatch.setattr("sys.argv", argv)
+    demo.main()
+    out = capsys.readouterr().out
+    assert "mesh study: runout" in out and "from h = 20 to 10 mm" in out
+    results = json.loads((tmp_path / "a1" / "collapse.json").read_text())
+    assert [r["h"] for r in results] == [0.02, 0.01] and (tmp_path / "a1" / "collapse.png").stat().st_size > 0
+    for r in results:
+        assert r["t_end"] == pytest.approx(0.15, abs=1e-3)
+        assert 0.05 < r["runout"] < 0.5 and r["height"] < 1.0 and 0.0 <= r["apart"] <= 1.0
+        assert max(r["profile_y"]) <= 0.1 and (Path(r["folder"]) / "particles.xdmf").exists()
+
+
+def test_a_deposits_measures_come_from_its_particles():
+    demo = load("demo_column_collapse")
+    x = np.array([[0.0, 0.05], [0.1, 0.1], [0.2, 0.0]] * 40)
+    d = demo.deposit(x, np.array([0.0, 1e-6, 0.0] * 40), H0=0.1, bin_width=0.05)
+    assert d["runout"] == pytest.approx(1.0) and d["height"] == pytest.approx(1.0)
+    assert d["apart"] == pytest.approx(1 / 3) and d["profile_y"][:3] == [0.05, 0.0, 0.1]
+
+
+@pytest.mark.parametrize(
+    "h, aspect, match",
+    [(0.03, 1.0, "cannot resolve the column"), (0.01, 5.0, "aspect must be in"), (-0.01, 1.0, "h must be")],
+)
+def test_column_collapse_bad_input(h, aspect, match):
+    with pytest.raises(ValueError, match=match):
+        load("demo_column_collapse").overrides(h, aspect)
