@@ -74,6 +74,11 @@ def overrides(h: float, aspect: float, t_end: float | None = None) -> list[str]:
     ]
 
 
+def runout(x: np.ndarray) -> float:
+    """``(L - L0) / L0`` of the particles at ``x`` [m] (``shape=(n, 2 or 3)``), L their 99th-percentile x."""
+    return float((np.percentile(x[:, 0], 99) - L0) / L0)
+
+
 def deposit(x: np.ndarray, free_volume: np.ndarray, H0: float, bin_width: float) -> dict:
     """Runout, residual height, share apart and surface profile of a deposit.
 
@@ -89,7 +94,7 @@ def deposit(x: np.ndarray, free_volume: np.ndarray, H0: float, bin_width: float)
     top = np.zeros(len(edges))
     np.maximum.at(top, column, x[:, 1])
     return {
-        "runout": float((np.percentile(x[:, 0], 99) - L0) / L0),
+        "runout": runout(x),
         "height": float(np.percentile(x[:, 1], 99) / H0),
         "apart": float(np.mean(free_volume > 0.0)),
         "profile_x": (edges + 0.5 * bin_width).tolist(),
@@ -116,10 +121,9 @@ def measure(folder: Path, h: float, aspect: float) -> dict:
     outputs = len(ET.parse(series).getroot().find("Domain/Grid"))
     times, fronts = [], []
     for k in range(outputs):
-        t, x, _, _ = xdmf.read(series, k)
+        t, x, _, fields = xdmf.read(series, k)
         times.append(t)
-        fronts.append(float((np.percentile(x[:, 0], 99) - L0) / L0))
-    t, x, _, fields = xdmf.read(series, -1)
+        fronts.append(runout(x))
     late = np.searchsorted(times, 0.75 * t)
     return {
         "h": h,
