@@ -25,7 +25,6 @@ ParaView, ``history.csv``, figures); the study writes ``collapse.json`` and ``co
 import argparse
 import json
 import math
-import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import dolfin_mpm as dm  # noqa: F401  (import first: it loads DOLFINx's libraries)
@@ -118,11 +117,9 @@ def measure(folder: Path, h: float, aspect: float) -> dict:
     # The front's runout at every output shows whether the deposit is at rest: what it moved
     # over the last quarter of the run is ``moving``.
     series = folder / "particles.xdmf"
-    outputs = len(ET.parse(series).getroot().find("Domain/Grid"))
-    times, fronts = [], []
-    for k in range(outputs):
+    times, fronts = xdmf.times(series), []
+    for k in range(len(times)):
         t, x, _, fields = xdmf.read(series, k)
-        times.append(t)
         fronts.append(runout(x))
     late = np.searchsorted(times, 0.75 * t)
     return {

@@ -613,7 +613,7 @@ def test_a_series_written_in_pieces_extends_in_another_layout(tmp_path, layout):
     if comm.rank != 0:
         return
     times = [xdmf.read(folder / "run" / "grid.xdmf", k)[0] for k in range(3)]
-    assert times == [0.0, 0.01, 0.015]
+    assert times == [0.0, 0.01, 0.015] == xdmf.times(folder / "run" / "grid.xdmf")
     with pytest.raises(IndexError):
         xdmf.read(folder / "run" / "grid.xdmf", 3)
     for k in range(3):

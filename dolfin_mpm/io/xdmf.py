@@ -30,7 +30,7 @@ from dolfin_mpm.core import compat
 from dolfin_mpm.io.disk import ensure_room, tree_bytes
 from dolfin_mpm.materials.tensor import invariants
 
-__all__ = ["LAYOUTS", "Output", "XDMFSeries", "default_layout", "particle_fields", "read"]
+__all__ = ["LAYOUTS", "Output", "XDMFSeries", "default_layout", "particle_fields", "read", "times"]
 
 _TYPES = {1: "Scalar", 3: "Vector", 9: "Tensor"}
 
@@ -424,6 +424,11 @@ class Output:
 
     def __exit__(self, *exc):
         self.close()
+
+
+def times(path) -> list[float]:
+    """The times [s] of a series this module wrote, in order: ``read(path, k)`` is at the k-th."""
+    return [float(grid.find("Time").get("Value")) for grid in ET.parse(path).getroot().find("Domain/Grid")]
 
 
 def read(path, index: int = -1) -> tuple[float, np.ndarray, np.ndarray, dict[str, np.ndarray]]:
