@@ -54,7 +54,25 @@ def test_mpi_scaling_records_its_run(tmp_path, monkeypatch, capsys):
     r = json.loads(out.read_text())["1"]
     assert r["ms_per_step"] > 0.0 and r["particles"] == r["particles_per_rank_max"] > 0
     assert r["repartitions"] == 0 and r["rebalance_ms_per_step"] == 0.0  # one rank: nothing to deal
+    assert {"p2g", "g2p", "neighbours", "averaging"} <= set(r["stages_ms"])
+    assert sum(r["stages_ms"].values()) <= r["ms_per_step"] * 1.01
     assert "1 rank(s)" in capsys.readouterr().out
+    mpi_scaling.main()  # a second start adds its run to the samples
+    r = json.loads(out.read_text())["1"]
+    assert len(r["samples"]) == 2
+    assert r["ms_per_step"] == pytest.approx(sum(s["ms_per_step"] for s in r["samples"]) / 2)
+    monkeypatch.setattr(sys, "argv", [*sys.argv, "--fresh"])
+    mpi_scaling.main()
+    assert len(json.loads(out.read_text())["1"]["samples"]) == 1
+    assert mpi_scaling.speed_up([10.0, 30.0, 12.0], [5.0, 20.0, 4.0]) == 2.0  # pairwise: 1.5, 2, 3
+
+
+def test_mpi_scaling_refuses_bad_arguments(monkeypatch, capsys):
+    mpi_scaling = load("mpi_scaling")
+    monkeypatch.setattr(sys, "argv", ["mpi_scaling", "--runs", "0"])
+    with pytest.raises(SystemExit) as exit_:
+        mpi_scaling.main()
+    assert exit_.value.code == 2 and "--runs and --steps must be >= 1" in capsys.readouterr().err
 
 
 def test_output_cost_measures_each_layout(tmp_path, monkeypatch, capsys):
