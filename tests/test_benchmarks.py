@@ -88,3 +88,25 @@ def test_output_cost_measures_each_layout(tmp_path, monkeypatch, capsys):
         assert m["bytes_per_write"] > r["particles"] * 8 * (3 + 3 + 9)  # x, velocity, stress at least
         assert m["rank0_peak_bytes"] > r["particles"] * 8 * 9  # the stress copied for the file
     assert "per-rank" in capsys.readouterr().out
+
+
+def test_step_stability_samples_a_collapse(tmp_path, monkeypatch, capsys):
+    step_stability = load("step_stability")
+    out = tmp_path / "step_stability.json"
+    scenario = BENCHMARKS.parent / "demos" / "column_collapse.toml"
+    keys = [
+        "nonlocal.radius=0", "mesh.upper=[0.4,0.12]", "mesh.cells=[20,6]",
+        "bodies.column.region.max=[0.1,0.1]", "bodies.column.stress.surface=0.1", "time.end=0.02",
+    ]  # fmt: skip
+    argv = ["step_stability", str(scenario), *[a for k in keys for a in ("--set", k)], "--every", "2"]
+    monkeypatch.setattr(sys, "argv", [*argv, "--json", str(out)])
+    step_stability.main()
+    r = json.loads(out.read_text())
+    q = r["e_max_quantiles"]
+    assert r["samples"] > 10 and 0.0 < q["0.5"] <= q["1.0"] == r["worst"]["e_max"] < 1.0
+    assert r["unstable_samples"] == 0 and r["worst"]["particle"] >= 0
+    assert "above 1 in 0" in capsys.readouterr().out
+    monkeypatch.setattr(sys, "argv", [*argv[:-1], "0"])
+    with pytest.raises(SystemExit) as exit_:
+        step_stability.main()
+    assert exit_.value.code == 2 and "--every must be >= 1" in capsys.readouterr().err
