@@ -22,10 +22,14 @@ from mpi4py import MPI
 
 from dolfin_mpm.app import scenario
 from dolfin_mpm.explicit.stability import stability_ratio
+from dolfin_mpm.explicit.step import SimulationError
 
 
-def record(sim, every: int) -> list[dict]:
-    """Run ``sim`` to its end; the largest ``e_p`` of every ``every``-th step, with its particle and time."""
+def record(sim, every: int) -> tuple[list[dict], str | None]:
+    """Run ``sim`` to its end; the largest ``e_p`` of every ``every``-th step, with its particle and time.
+
+    Returns the samples and, if the run went bad, what stopped it (the samples up to there kept).
+    """
     s, cfg, rows = sim.solver, sim.config, []
 
     def sample():
@@ -38,11 +42,14 @@ def record(sim, every: int) -> list[dict]:
         rows.append({"t": s.time, "step": s.step_count, "e_max": top[0], "particle": top[1], "x": top[2]})
 
     schedule = [(e["time"], k) for k, e in enumerate(cfg["events"])]
-    for t_target, event in [*schedule, (cfg["time"]["end"], None)]:
-        s.run_until(t_target, [(every, sample)])
-        if event is not None:
-            sim.apply_event(event)
-    return rows
+    try:
+        for t_target, event in [*schedule, (cfg["time"]["end"], None)]:
+            s.run_until(t_target, [(every, sample)])
+            if event is not None:
+                sim.apply_event(event)
+    except (SimulationError, ValueError) as e:  # a particle lost or outside: the samples stand
+        return rows, f"step {s.step_count}, t = {s.time:.6g} s: {e}"
+    return rows, None
 
 
 def main():
@@ -57,7 +64,7 @@ def main():
     if args.every < 1:
         parser.error(f"--every must be >= 1, got {args.every}")
     sim = scenario.build(scenario.load(args.scenario, args.set))
-    rows = record(sim, args.every)
+    rows, stopped = record(sim, args.every)
     e = np.array([r["e_max"] for r in rows])
     worst = rows[int(np.argmax(e))]
     quantiles = {q: float(np.quantile(e, q)) for q in (0.5, 0.9, 0.99, 1.0)}
@@ -69,6 +76,8 @@ def main():
         "e_max_quantiles": quantiles,
         "unstable_samples": int(np.count_nonzero(e > 1.0)),
         "worst": worst,
+        "stopped": stopped,
+        "last_samples": rows[-50:],
     }
     if MPI.COMM_WORLD.rank == 0:
         print(
@@ -80,6 +89,8 @@ def main():
             f"largest {worst['e_max']:.3f} at t = {worst['t']:.4g} s, "
             f"particle {worst['particle']} at x = {worst['x']}"
         )
+        if stopped:
+            print(f"the run stopped: {stopped}")
         args.json.write_text(json.dumps(result, indent=1))
         print(f"wrote {args.json}")
 

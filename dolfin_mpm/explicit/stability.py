@@ -2,7 +2,7 @@
 
 MUSL with FLIP advances the particle velocities, ``v_p += dt sum_I N_Ip (F_I - R_I) / m_I``,
 with the stresses from the nodal velocities re-mapped from the particles. About an elastic
-state this is the symplectic Euler step of ``dv/dt = -A v`` (in the strain rate) with
+state the particle velocities follow the symplectic Euler step of ``d2v/dt2 = -A v`` with::
 
     A_pr = sum_I N_Ip / m_I  sum_J K_IJ  N_Jr m_r / m_J,
 
@@ -10,13 +10,13 @@ state this is the symplectic Euler step of ``dv/dt = -A v`` (in the strain rate)
 ``dt^2 omega^2 <= 4`` for the largest eigenvalue ``omega^2`` of ``A``. Gershgorin's theorem on
 the rows of ``A``, with ``sum_r N_Jr m_r = m_J`` and ``|K_IJ| <= sum_c S_c |grad N_I| |grad N_J|``
 over the cells c they share (``S_c``: ``V_p M_p`` summed over the cell's points; the scalar
-wave estimate), bounds each particle's row:
+wave estimate), bounds each particle's row::
 
     omega_p^2 <= sum_I N_Ip k_I / m_I,   k_I = sum_c S_c |grad N_I|_c sum_J |grad N_J|_c.
 
-:func:`stability_ratio` is ``e_p = dt^2 omega_p^2 / 4``: the step is stable where ``e_p <= 1``
-everywhere. A light node does not make it large, for ``N_Ip / m_I <= 1 / m_p`` whatever the
-node's mass: a point alone in its cell has the same ``e_p`` wherever it sits in it. Inside a
+:func:`stability_ratio` is ``e_p = dt^2 omega_p^2 / 4``; ``e_p <= 1`` at every particle is
+sufficient for a stable step. A light node does not make it large, for ``N_Ip / m_I <= 1 / m_p``
+whatever the node's mass: a point alone in its cell has the same ``e_p`` wherever it sits in it. Inside a
 filled mesh of right triangles, ``e_p = (6 + 4 sqrt 2) / 8 courant^2`` (0.364 at Courant 0.5).
 """
 
