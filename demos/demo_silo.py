@@ -29,6 +29,7 @@ particles as the silo empties whenever a rank holds 5 % more than the mean.
 import argparse
 import hashlib
 import inspect
+import itertools
 import json
 import math
 import time
@@ -206,8 +207,9 @@ class Monitor:
     """What a run records at each call: the discharged mass and the ranks' particle imbalance
     (:meth:`~dolfin_mpm.Solver.imbalance`); every ``xdmf_every``-th call the
     XDMF output; from ``t_profile`` on, the profiles of e_vp_bar and v_y across the silo at
-    the height ``y_c`` and of the speed at :data:`BAND_HEIGHTS` (strips of one cell, bins of
-    half a cell), summed for time averages.
+    the height ``y_c`` and of the speed at :data:`BAND_HEIGHTS`; from :data:`T_STEADY` on, the
+    mass flux down through the outlet plane (strips of one cell, bins of half a cell), summed
+    for time averages.
     """
 
     def __init__(self, output, h, width, y_c, t_profile, xdmf_every=5):
@@ -216,6 +218,7 @@ class Monitor:
         self.edges = np.linspace(0.0, width, round(2 * width / h) + 1)
         self.sums = np.zeros((3, len(self.edges) - 1))  # count, e_vp_bar, v_y
         self.band_sums = {name: np.zeros((2, len(self.edges) - 1)) for name in BAND_HEIGHTS}  # count, speed
+        self.flux_sums, self.flux_records = np.zeros(len(self.edges) - 1), 0  # momentum down, records
 
     def write(self, solver):
         if self.output is not None and len(self.t) % self.xdmf_every == 0:
@@ -232,6 +235,12 @@ class Monitor:
             for name, y in BAND_HEIGHTS.items():
                 strip = np.abs(P.x[:, 1] - y) < 0.5 * self.h
                 self.band_sums[name] += bin_sums(P.x[strip, 0], self.edges, speed[strip])
+        if solver.time >= T_STEADY - 1e-12:
+            P = solver.particles
+            strip = np.abs(P.x[:, 1]) < 0.5 * self.h
+            down = -P.mass[strip] * P.v[strip, 1]
+            self.flux_sums += np.histogram(P.x[strip, 0], self.edges, weights=down)[0]
+            self.flux_records += 1
 
     def profiles(self, comm):
         """Bin centres [m] and the time-averaged e_vp_bar [1/s] and v_y [m/s] in each bin."""
@@ -239,6 +248,16 @@ class Monitor:
         seen = count > 0  # bins no particle visited are left out
         x = 0.5 * (self.edges[1:] + self.edges[:-1])
         return x[seen], e[seen] / count[seen], v[seen] / count[seen]
+
+    def outlet_flux(self, comm):
+        """Bin centres [m] and the time-averaged mass flux density down through y = 0 [kg/s/m²].
+
+        The momentum ``-m v_y`` of the strip ``|y| < h / 2`` in each bin over the strip's area;
+        its integral across the outlet is the flow rate.
+        """
+        x = 0.5 * (self.edges[1:] + self.edges[:-1])
+        total = comm.allreduce(self.flux_sums, MPI.SUM)
+        return x, total / max(self.flux_records, 1) / (self.h * np.diff(self.edges))
 
     def band_profiles(self, comm) -> dict:
         """The time-averaged speed [m/s] across each band's height: ``{name: (x, speed)}``."""
@@ -282,7 +301,9 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, heig
         dict: the discharged mass against time, the flow rate, the particles at ``t_end``
         (positions and non-local rate e_vp_bar, of all ranks on every rank), the
         time-averaged profiles across the silo at
-        the height ``y_c`` over the last fifth of the run, and the run's statistics.
+        the height ``y_c`` over the last fifth of the run, the time-averaged flux through the
+        outlet plane (``profile_flux``, bin centres and flux density) and its ``outlet_shares``
+        by distance from the edges (:func:`outlet_shares`), and the run's statistics.
 
     """
     for name, value in (("t_end", t_end), ("interval", interval)):
@@ -314,6 +335,7 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, heig
     t, mass = np.array(monitor.t), np.array(monitor.mass)
     x_c, e_c, v_c = monitor.profiles(comm)
     bands = monitor.band_profiles(comm)
+    x_f, flux = monitor.outlet_flux(comm)
     fp = solver.fixed_point
     e_vp_bar = P.state["eps_vp_rate_nonlocal"]
     gather = lambda a: np.concatenate(comm.allgather(a))  # noqa: E731  (all ranks' particles)
@@ -338,6 +360,8 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, heig
         "profile_e_vp_bar": e_c,
         "profile_v_y": v_c,
         **{f"profile_speed_{name}": np.array(xs) for name, xs in bands.items()},  # (x, speed)
+        "profile_flux": np.array([x_f, flux]),
+        "outlet_shares": outlet_shares(x_f, flux, 0.5 * (width - outlet), 0.5 * (width + outlet)),
         **velocity_bands(bands, width),
         "y_c": y_c,
         "x": gather(P.x[:, :2]),  # the particles at t_end
@@ -452,7 +476,23 @@ def _section_peak(result, width, y) -> tuple[float, float]:
     return fwhm(centres, mean), float(centres[np.argmax(mean)])
 
 
-def flow_rate(t, mass, t_from=0.1):
+#: From this time [s] on the discharge is steady: the flow rate and the outlet's flux are taken over it.
+T_STEADY = 0.1
+#: Distances [m] from the nearer outlet edge that split the outlet for :func:`outlet_shares`.
+OUTLET_BANDS = (0.0, 0.01, 0.02, 0.03, np.inf)
+
+
+def outlet_shares(x, flux, x0, x1) -> list[float]:
+    """The flow rate [kg/s/m] through each band of the outlet ``[x0, x1]`` [m] by distance from its
+    nearer edge (:data:`OUTLET_BANDS`), from the flux density ``flux`` [kg/s/m²] at the bin
+    centres ``x`` [m] (equal bins): where across the opening the material passes.
+    """
+    dx = x[1] - x[0]
+    d = np.minimum(x - x0, x1 - x)  # < 0: over a plate
+    return [float(flux[(d >= lo) & (d < hi)].sum() * dx) for lo, hi in itertools.pairwise(OUTLET_BANDS)]
+
+
+def flow_rate(t, mass, t_from=T_STEADY):
     """Steady mass flow rate [kg/s per metre]: slope of the discharged mass after ``t_from``."""
     late = t >= t_from
     if late.sum() < 3:
@@ -504,7 +544,7 @@ STUDIES = {
 }
 ARRAYS = (
     "t", "discharged", "x", "e_vp_bar", "profile_x", "profile_e_vp_bar", "profile_v_y",
-    *(f"profile_speed_{name}" for name in BAND_HEIGHTS),
+    *(f"profile_speed_{name}" for name in BAND_HEIGHTS), "profile_flux",
 )  # fmt: skip
 
 
@@ -1088,6 +1128,14 @@ def main():
             f"max e_vp_bar {r['e_vp_bar_max']:.1f} 1/s, {r['particles']} particles, {r['steps']} steps, "
             f"{r['seconds']:.0f} s{ranks(r)}, {r['mean_iterations']:.2f} iterations per step"
         )
+        if "outlet_shares" in r:  # stored runs made before it have none
+            bands = [f"{1e2 * lo:g}-{1e2 * hi:g} cm" for lo, hi in itertools.pairwise(OUTLET_BANDS[:-1])]
+            bands.append(f"beyond {1e2 * OUTLET_BANDS[-2]:g} cm")
+            print(
+                "  through the outlet by distance from its edges: "
+                + ", ".join(f"{b} {q:.1f}" for b, q in zip(bands, r["outlet_shares"]))
+                + f" kg/s/m (sum {sum(r['outlet_shares']):.1f})"
+            )
     if args.report is not None and MPI.COMM_WORLD.rank == 0:
         report(args.output, args.report)
         print(f"wrote {args.report}")

@@ -79,6 +79,18 @@ def test_silo_quick_discharge(tmp_path):
     widths = demo.band_widths(r)
     assert 0.0 < widths["edge"] < 0.1 and 0.0 < widths["edge_x"] < 0.1
     assert (tmp_path / "particles.xdmf").exists()
+    # The flux through the outlet plane passes the opening, not the plates.
+    x, flux = r["profile_flux"]
+    assert sum(r["outlet_shares"]) > 0.0 and np.all(np.abs(flux[x < 0.04]) < 0.1 * flux.max())
+
+
+def test_silo_outlet_shares_split_the_flux_by_distance_from_the_edges():
+    """A uniform flux F over the 10 cm outlet: 2 cm of it in each of the three 1 cm bands, 4 cm beyond."""
+    demo = load("demo_silo")
+    x = np.arange(0.0025, 0.2, 0.005)  # bin centres, bins of 5 mm over the silo's width
+    F = 1500.0
+    flux = np.where((x > 0.05) & (x < 0.15), F, 7.0)  # 7: over the plates, not counted
+    assert np.allclose(demo.outlet_shares(x, flux, 0.05, 0.15), [0.02 * F, 0.02 * F, 0.02 * F, 0.04 * F])
 
 
 def test_silo_quick_paper_law_and_its_report(tmp_path):
