@@ -226,8 +226,8 @@ class Monitor:
         self.t.append(solver.time)
         self.mass.append(discharged_mass(solver))
         self.imbalance.append(solver.imbalance())
+        P = solver.particles
         if solver.time >= self.t_profile - 1e-12:
-            P = solver.particles
             strip = np.abs(P.x[:, 1] - self.y_c) < 0.5 * self.h
             e_bar = P.state["eps_vp_rate_nonlocal"]
             self.sums += bin_sums(P.x[strip, 0], self.edges, e_bar[strip], P.v[strip, 1])
@@ -236,10 +236,8 @@ class Monitor:
                 strip = np.abs(P.x[:, 1] - y) < 0.5 * self.h
                 self.band_sums[name] += bin_sums(P.x[strip, 0], self.edges, speed[strip])
         if solver.time >= T_STEADY - 1e-12:
-            P = solver.particles
             strip = np.abs(P.x[:, 1]) < 0.5 * self.h
-            down = -P.mass[strip] * P.v[strip, 1]
-            self.flux_sums += np.histogram(P.x[strip, 0], self.edges, weights=down)[0]
+            self.flux_sums += bin_sums(P.x[strip, 0], self.edges, -P.mass[strip] * P.v[strip, 1])[1]
             self.flux_records += 1
 
     def profiles(self, comm):
