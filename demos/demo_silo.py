@@ -107,8 +107,11 @@ def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, he
         ppc: particles per triangle.
         shift: the mesh shifted sideways by this fraction of a cell, in [0, 1): 0 puts the side
             walls and (for ``(width - outlet) / 2`` a multiple of ``h``) the outlet edges on nodes.
-        edge_cell: cells of this size [m] within ``edge_zone`` [m] of the outlet edges
-            (across and up from the bottom), ``h`` elsewhere; ``None``: ``h`` everywhere.
+        edge_cell: mesh lines ``edge_cell`` [m] apart within ``edge_zone`` [m] of the outlet
+            edges' x and of the bottom's y, ``h`` apart elsewhere; ``None``: ``h`` everywhere.
+            The lines run through the whole mesh: squares of ``edge_cell`` only round the
+            edges, columns of ``edge_cell x h`` cells up the silo's height and rows of
+            ``h x edge_cell`` cells across its width.
         comm: the communicator the mesh is partitioned over.
         partition: on several ranks, :data:`PARTITIONS`: ``"strips"`` keeps vertical strips
             of equal fill; ``"rebalance"`` starts so and deals the strips anew by the
@@ -763,8 +766,8 @@ def edge_lines(runs, uniform) -> list[str]:
                 changes.append((e, r["flow_rate"] / same - 1))
                 than = f" (uniform h = {1e3 * e:g} mm: {same:.1f}, {changes[-1][1]:+.1%})"
             out.append(
-                f"- h = {1e3 * r['h']:g} mm, {1e3 * e:g} mm cells within 4 cm of the outlet edges: "
-                f"{r['flow_rate']:.1f} kg/s/m{than}, {r['particles']} particles"
+                f"- h = {1e3 * r['h']:g} mm, lines {1e3 * e:g} mm apart within 4 cm of the outlet edges "
+                f"and the bottom: {r['flow_rate']:.1f} kg/s/m{than}, {r['particles']} particles"
             )
     if not changes:
         return out
@@ -772,8 +775,8 @@ def edge_lines(runs, uniform) -> list[str]:
     far = [f"{1e3 * e:g} mm ({d:+.1%})" for e, d in changes if abs(d) > 0.03]
     coarse = ", ".join(sorted({f"{1e3 * r['h']:g} mm" for r in runs if r.get("edge_cell")}))
     said = (
-        f"- Refined at the outlet edges alone, the {coarse} mesh gives the flow rate of the uniform "
-        f"mesh of its edge cells to 3 % with edge cells of {', '.join(near) or 'no size'}"
+        f"- Refined along lines through the outlet edges, the {coarse} mesh gives the flow rate of "
+        f"the uniform mesh of its edge cells to 3 % with edge cells of {', '.join(near) or 'no size'}"
     )
     if far:
         said += f", not with {', '.join(far)}: see docs/numerics.md."
