@@ -10,15 +10,21 @@ sequence of meshes and measures the deposit at rest:
 - residual height ``H / H0``, with ``H`` the 99th-percentile particle y;
 - the share of the points apart (free volume > 0: pulled below the critical density, stress free).
 
-The change of each from the second finest to the finest mesh is the number to quote with it:
+The change of each from the second finest to the finest mesh is the number to quote with it.
+A collapse's front is sensitive to small perturbations, so a single run's runout carries a
+scatter of its own: ``--scatter K`` runs each mesh K more times with the time step 2, 4, ... %
+off and reports the runout's mean and standard deviation, and the mesh change with its
+uncertainty:
 
     python demos/demo_column_collapse.py                          # a = 2, h = 10 and 5 mm (~2 min)
     python demos/demo_column_collapse.py --aspect 1 --h 0.01 0.005 0.0025 0.00125   # (~1.5 h)
+    python demos/demo_column_collapse.py --aspect 1 --h 0.005 0.0025 --scatter 2    # (~25 min)
 
 Measured (``docs/numerics.md``): a = 2 runs out 2.78 / 3.37 / 3.32 on h = 10 / 5 / 2.5 mm;
 a = 1 runs out 0.99 / 1.35 / 1.50 / 1.52 on h = 10 / 5 / 2.5 / 1.25 mm, converged to 1.5 % only
-on the finest pair. Two-dimensional experiments give ``ΔL / L0 ≈ 1.2 a`` for a up to 2–3 (Lube
-et al., Phys. Rev. E 72, 2005). Each mesh's run is a scenario run in its own folder (XDMF for
+on the finest pair; over five time steps 2 % apart the a = 1 runout is 1.322 ± 0.022 on
+h = 5 mm, and 1.495 ± 0.018 on 2.5 mm over three. Two-dimensional experiments give
+``ΔL / L0 ≈ 1.2 a`` for a up to 2–3 (Lube et al., Phys. Rev. E 72, 2005). Each mesh's run is a scenario run in its own folder (XDMF for
 ParaView, ``history.csv``, figures); the study writes ``collapse.json`` and ``collapse.png``.
 """
 
@@ -101,14 +107,41 @@ def deposit(x: np.ndarray, free_volume: np.ndarray, H0: float, bin_width: float)
     }
 
 
-def run(h=0.01, aspect=2.0, t_end=None, output=Path("results/column_collapse"), progress=True) -> dict:
-    """The collapse on a mesh of ``h`` [m], run to ``t_end`` [s] in ``output/h<mm>``: its deposit."""
-    cfg = scenario.load(SCENARIO, overrides(h, aspect, t_end))
+def run(
+    h=0.01, aspect=2.0, t_end=None, output=Path("results/column_collapse"), progress=True, courant=None
+) -> dict:
+    """The collapse on a mesh of ``h`` [m], run to ``t_end`` [s] in ``output/h<mm>``: its deposit.
+
+    ``courant``: the solver's Courant factor, ``None`` for the scenario's; another one runs in
+    ``output/h<mm>_courant<c>``.
+    """
+    extra = [] if courant is None else [f"solver.courant={courant!r}"]
+    cfg = scenario.load(SCENARIO, overrides(h, aspect, t_end) + extra)
     sim = scenario.build(cfg)
-    folder = Path(output) / f"h{1e3 * h:g}mm"
+    folder = Path(output) / (f"h{1e3 * h:g}mm" + ("" if courant is None else f"_courant{courant:g}"))
     folder.mkdir(parents=True, exist_ok=True)
     Runner(sim, folder, progress=progress).run()
-    return measure(folder, h, aspect)
+    return {**measure(folder, h, aspect), "courant": courant}
+
+
+def courants(count: int, base: float) -> list[float]:
+    """``count`` Courant factors next to ``base``, 2 % apart: ``base (1 - 0.02)``, ``base (1 + 0.02)``,
+    ``base (1 - 0.04)``, ... A step this much shorter or longer should not change a converged
+    answer, so what the runs give about the base run is the scatter of a single run.
+    """
+    if not (isinstance(count, int) and 0 <= count <= 10):
+        raise ValueError(f"scatter must be a whole number of runs in [0, 10], got {count!r}")
+    steps = [sign * k for k in range(1, count // 2 + 2) for sign in (-1, 1)][:count]
+    return [round(base * (1 + 0.02 * k), 6) for k in steps]
+
+
+def spread(results: list[dict]) -> dict:
+    """The runout's mean and standard deviation over the runs on each mesh: ``{h: (mean, std, runs)}``."""
+    out = {}
+    for h in sorted({r["h"] for r in results}, reverse=True):
+        values = np.array([r["runout"] for r in results if r["h"] == h])
+        out[h] = (float(values.mean()), float(values.std(ddof=1)) if len(values) > 1 else 0.0, len(values))
+    return out
 
 
 def measure(folder: Path, h: float, aspect: float) -> dict:
@@ -135,8 +168,11 @@ def measure(folder: Path, h: float, aspect: float) -> dict:
     }
 
 
-def plot(results: list[dict], path: Path) -> None:
-    """The deposits' surface profiles on every mesh, and the runout against h."""
+def plot(results: list[dict], path: Path, runouts: dict | None = None) -> None:
+    """The deposits' surface profiles on every mesh, and the runout against h.
+
+    ``runouts``: :func:`spread` of all the runs, drawn as the mean and its standard deviation.
+    """
     a = results[0]["aspect"]
     with figure(path, ncols=2, figsize=(11, 3.8), gridspec_kw={"width_ratios": [2.2, 1]}) as (ax1, ax2):
         for r in results:
@@ -149,8 +185,13 @@ def plot(results: list[dict], path: Path) -> None:
         ax1.set(xlabel="x [cm]", ylabel="surface height [cm]", title=f"Deposit, a = {a:g}")
         ax1.legend(fontsize=8)
         h = [1e3 * r["h"] for r in results]
-        ax2.plot(h, [r["runout"] for r in results], "o-")
-        ax2.set(xscale="log", xlabel="h [mm]", ylabel="runout (L - L0) / L0", title="Mesh study")
+        if runouts is None:
+            ax2.plot(h, [r["runout"] for r in results], "o-")
+        else:
+            mean, std = (np.array([runouts[r["h"]][k] for r in results]) for k in (0, 1))
+            ax2.errorbar(h, mean, yerr=std, fmt="o-", capsize=3)
+        label = "runout (L - L0) / L0" + ("" if runouts is None else ": mean ± s.d.")
+        ax2.set(xscale="log", xlabel="h [mm]", ylabel=label, title="Mesh study")
         ax2.set_xticks(h, [f"{v:g}" for v in h])
         ax2.minorticks_off()
         ax2.invert_xaxis()
@@ -163,31 +204,53 @@ def main():
     parser.add_argument("--aspect", type=float, default=2.0, help="aspect ratio a = H0 / L0, in [0.5, 4]")
     parser.add_argument("--t-end", type=float, help="end of the run [s] (default 0.4 + 0.2 a: at rest)")
     parser.add_argument("--output", type=Path, default=Path("results/column_collapse"))
+    parser.add_argument(
+        "--scatter",
+        type=int,
+        default=0,
+        help="runs more on each mesh, their time steps 2, 4, ... %% off the scenario's (their spread)",
+    )
     args = parser.parse_args()
     for h in args.h:  # bad input before any run
-        overrides(h, args.aspect, args.t_end)
+        cfg = scenario.load(SCENARIO, overrides(h, args.aspect, args.t_end))
+    factors = [None, *courants(args.scatter, cfg["solver"]["courant"])]
     output = args.output / f"a{args.aspect:g}"
-    results = [run(h, args.aspect, args.t_end, output) for h in sorted(args.h, reverse=True)]
+    results = [
+        run(h, args.aspect, args.t_end, output, courant=c)
+        for h in sorted(args.h, reverse=True)
+        for c in factors
+    ]
     if MPI.COMM_WORLD.rank > 0:
         return
     for r in results:
+        step = "" if r["courant"] is None else f" (Courant {r['courant']:g})"
         print(
-            f"h = {1e3 * r['h']:g} mm: runout {r['runout']:.3f}, H/H0 {r['height']:.3f}, "
+            f"h = {1e3 * r['h']:g} mm{step}: runout {r['runout']:.3f}, H/H0 {r['height']:.3f}, "
             f"apart {100 * r['apart']:.0f} %, front moved {r['moving']:+.3f} L0 over the last quarter, "
             f"{r['particles']} particles"
         )
     # ## Verification
     # The deposit must be at rest (its front no longer moves; the particles' kinetic energy
     # does not say it, as FLIP keeps a noise of a few cm/s in the deposit) and its runout must
-    # not change with the mesh: the change between the two finest meshes is its mesh error.
-    if len(results) > 1:
-        a, b = results[-2], results[-1]
+    # not change with the mesh: the change between the two finest meshes is its mesh error. A
+    # collapse's front is sensitive to small perturbations: with ``--scatter`` each mesh's
+    # runout is the mean over runs whose time steps differ by a few per cent, and its standard
+    # deviation says how far a single run may be off.
+    runouts = spread(results)
+    if args.scatter:
+        for h, (mean, std, n) in runouts.items():
+            print(
+                f"h = {1e3 * h:g} mm: runout {mean:.3f} ± {std:.3f} (mean ± standard deviation of {n} runs)"
+            )
+    if len(runouts) > 1:
+        (ha, (a, sa, _)), (hb, (b, sb, _)) = list(runouts.items())[-2:]
+        scatter = f" ± {math.hypot(sb, b / a * sa) / a:.3f}" if args.scatter else ""  # of b / a
         print(
-            f"mesh study: runout {b['runout']:.3f}, change {b['runout'] / a['runout'] - 1:+.3f} "
-            f"from h = {1e3 * a['h']:g} to {1e3 * b['h']:g} mm (experiments: about {1.2 * b['aspect']:.1f})"
+            f"mesh study: runout {b:.3f}, change {b / a - 1:+.3f}{scatter} "
+            f"from h = {1e3 * ha:g} to {1e3 * hb:g} mm (experiments: about {1.2 * args.aspect:.1f})"
         )
     (output / "collapse.json").write_text(json.dumps(results, indent=1))
-    plot(results, output / "collapse.png")
+    plot([r for r in results if r["courant"] is None], output / "collapse.png", runouts)
     print(f"wrote {output / 'collapse.json'} and {output / 'collapse.png'}")
 
 

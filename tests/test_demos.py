@@ -208,6 +208,26 @@ def test_column_collapse_quick_mesh_study(tmp_path, monkeypatch, capsys):
         assert max(r["profile_y"]) <= 0.1 and (Path(r["folder"]) / "particles.xdmf").exists()
 
 
+def test_column_collapse_scatter_runs_each_mesh_with_the_step_off(tmp_path, monkeypatch, capsys):
+    """``--scatter 2``: each mesh also with the Courant factor 2 % below and above the scenario's;
+    the runout's mean and standard deviation printed are those of the runs in the JSON."""
+    demo = load("demo_column_collapse")
+    assert demo.courants(4, 0.5) == [0.49, 0.51, 0.48, 0.52] and demo.courants(0, 0.5) == []
+    with pytest.raises(ValueError, match="scatter must be"):
+        demo.courants(-1, 0.5)
+    argv = ["demo", "--aspect", "1", "--h", "0.02", "--t-end", "0.1", "--scatter", "2"]
+    monkeypatch.setattr("sys.argv", [*argv, "--output", str(tmp_path)])
+    demo.main()
+    out = capsys.readouterr().out
+    results = json.loads((tmp_path / "a1" / "collapse.json").read_text())
+    assert [r["courant"] for r in results] == [None, 0.49, 0.51]
+    assert (tmp_path / "a1" / "h20mm_courant0.49" / "particles.xdmf").exists()
+    runouts = np.array([r["runout"] for r in results])
+    mean, std = runouts.mean(), runouts.std(ddof=1)
+    assert f"h = 20 mm: runout {mean:.3f} ± {std:.3f}" in out
+    assert demo.spread(results) == {0.02: (pytest.approx(mean), pytest.approx(std), 3)}
+
+
 def test_a_deposits_measures_come_from_its_particles():
     demo = load("demo_column_collapse")
     x = np.array([[0.0, 0.05], [0.1, 0.1], [0.2, 0.0]] * 40)
