@@ -24,8 +24,9 @@ Measured (``docs/numerics.md``): a = 2 runs out 2.78 / 3.37 / 3.32 on h = 10 / 5
 a = 1 runs out 0.99 / 1.35 / 1.50 / 1.52 on h = 10 / 5 / 2.5 / 1.25 mm, converged to 1.5 % only
 on the finest pair; over five time steps 2 % apart the a = 1 runout is 1.322 ± 0.022 on
 h = 5 mm, and 1.495 ± 0.018 on 2.5 mm over three. Two-dimensional experiments give
-``ΔL / L0 ≈ 1.2 a`` for a up to 2–3 (Lube et al., Phys. Rev. E 72, 2005). Each mesh's run is a scenario run in its own folder (XDMF for
-ParaView, ``history.csv``, figures); the study writes ``collapse.json`` and ``collapse.png``.
+``ΔL / L0 ≈ 1.2 a`` for a up to 2–3 (Lube et al., Phys. Rev. E 72, 2005). Each mesh's run is
+a scenario run in its own folder (XDMF for ParaView, ``history.csv``, figures); the study
+writes ``collapse.json`` and ``collapse.png``.
 """
 
 import argparse
