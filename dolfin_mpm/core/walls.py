@@ -200,7 +200,8 @@ class RigidWall:
         ends = self.points + self.velocity * time
         outside = ((ends < lo - slack) | (ends > hi + slack)).any(axis=1)
         if outside.any():
-            box = " x ".join(f"[{a:g}, {b:g}]" for a, b in zip(lo, hi))
+            bound = lambda v: f"{0.0 if abs(v) <= slack else v:g}"  # noqa: E731  (round-off of 0 shown as 0)
+            box = " x ".join(f"[{bound(a)}, {bound(b)}]" for a, b in zip(lo, hi))
             kind = "segment" if g == 2 else "facet"
             raise ValueError(
                 f"{self.name}: {kind} point {ends[np.argmax(outside)].tolist()} lies outside the mesh {box}"
