@@ -214,7 +214,7 @@ def main():
     args = parser.parse_args()
     for h in args.h:  # bad input before any run
         cfg = scenario.load(SCENARIO, overrides(h, args.aspect, args.t_end))
-    factors = [None, *courants(args.scatter, cfg["solver"]["courant"])]
+    factors = [None, *courants(args.scatter, cfg["solver"]["courant"])]  # the scenario's on every mesh
     output = args.output / f"a{args.aspect:g}"
     results = [
         run(h, args.aspect, args.t_end, output, courant=c)
@@ -251,7 +251,11 @@ def main():
             f"from h = {1e3 * ha:g} to {1e3 * hb:g} mm (experiments: about {1.2 * args.aspect:.1f})"
         )
     (output / "collapse.json").write_text(json.dumps(results, indent=1))
-    plot([r for r in results if r["courant"] is None], output / "collapse.png", runouts)
+    plot(
+        [r for r in results if r["courant"] is None],
+        output / "collapse.png",
+        runouts if args.scatter else None,
+    )
     print(f"wrote {output / 'collapse.json'} and {output / 'collapse.png'}")
 
 

@@ -219,6 +219,7 @@ class Monitor:
         self.output, self.xdmf_every, self.t, self.mass, self.imbalance = output, xdmf_every, [], [], []
         self.h, self.y_c, self.t_profile = h, y_c, t_profile
         self.edges = np.linspace(0.0, width, round(2 * width / h) + 1)
+        self.centres = 0.5 * (self.edges[1:] + self.edges[:-1])  # of the bins [m]
         self.sums = np.zeros((3, len(self.edges) - 1))  # count, e_vp_bar, v_y
         self.band_sums = {name: np.zeros((2, len(self.edges) - 1)) for name in BAND_HEIGHTS}  # count, speed
         self.flux_sums, self.flux_records = np.zeros(len(self.edges) - 1), 0  # momentum down, records
@@ -247,8 +248,7 @@ class Monitor:
         """Bin centres [m] and the time-averaged e_vp_bar [1/s] and v_y [m/s] in each bin."""
         count, e, v = comm.allreduce(self.sums, MPI.SUM)
         seen = count > 0  # bins no particle visited are left out
-        x = 0.5 * (self.edges[1:] + self.edges[:-1])
-        return x[seen], e[seen] / count[seen], v[seen] / count[seen]
+        return self.centres[seen], e[seen] / count[seen], v[seen] / count[seen]
 
     def outlet_flux(self, comm):
         """Bin centres [m] and the time-averaged mass flux density down through y = 0 [kg/s/m²].
@@ -256,18 +256,16 @@ class Monitor:
         The momentum ``-m v_y`` of the strip ``|y| < h / 2`` in each bin over the strip's area;
         its integral across the outlet is the flow rate.
         """
-        x = 0.5 * (self.edges[1:] + self.edges[:-1])
         total = comm.allreduce(self.flux_sums, MPI.SUM)
-        return x, total / max(self.flux_records, 1) / (self.h * np.diff(self.edges))
+        return self.centres, total / max(self.flux_records, 1) / (self.h * np.diff(self.edges))
 
     def band_profiles(self, comm) -> dict:
         """The time-averaged speed [m/s] across each band's height: ``{name: (x, speed)}``."""
-        x = 0.5 * (self.edges[1:] + self.edges[:-1])
         out = {}
         for name, sums in self.band_sums.items():
             count, speed = comm.allreduce(sums, MPI.SUM)
             seen = count > 0
-            out[name] = (x[seen], speed[seen] / count[seen])
+            out[name] = (self.centres[seen], speed[seen] / count[seen])
         return out
 
 
