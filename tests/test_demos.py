@@ -192,8 +192,9 @@ def test_silo_runs_record_the_code_that_made_them(tmp_path, capsys):
 
 
 def test_column_collapse_quick_mesh_study(tmp_path, monkeypatch, capsys):
-    """The collapse study on two coarse meshes, cut short: the front has left the gate on both,
-    the deposit is lower than the column, and the study's table, JSON and figure are written."""
+    """The collapse study on two coarse meshes, cut short: the front has left the gate on both
+    and is behind where free fall from the column's top, ``sqrt(2 g H0) t``, could carry it, the
+    deposit is lower than the column, and the study's table, JSON and figure are written."""
     demo = load("demo_column_collapse")
     argv = ["demo", "--aspect", "1", "--h", "0.02", "0.01", "--t-end", "0.15", "--output", str(tmp_path)]
     monkeypatch.setattr("sys.argv", argv)
@@ -202,10 +203,34 @@ def test_column_collapse_quick_mesh_study(tmp_path, monkeypatch, capsys):
     assert "mesh study: runout" in out and "from h = 20 to 10 mm" in out
     results = json.loads((tmp_path / "a1" / "collapse.json").read_text())
     assert [r["h"] for r in results] == [0.02, 0.01] and (tmp_path / "a1" / "collapse.png").stat().st_size > 0
+    reach = np.sqrt(2 * 9.81 * 0.1) * 0.15 / 0.1  # [L0]
     for r in results:
         assert r["t_end"] == pytest.approx(0.15, abs=1e-3)
-        assert 0.05 < r["runout"] < 0.5 and r["height"] < 1.0 and 0.0 <= r["apart"] <= 1.0
+        assert 0.05 < r["runout"] < reach and r["height"] < 1.0 and 0.0 <= r["apart"] <= 1.0
         assert max(r["profile_y"]) <= 0.1 and (Path(r["folder"]) / "particles.xdmf").exists()
+
+
+@pytest.mark.parametrize("diagonal", ["right", "crossed"])
+def test_column_collapse_mesh_locks_on_two_triangles_per_square(tmp_path, diagonal):
+    """The scenario's squares of four triangles let the sand flow without changing its volume;
+    squares of two lock it (a = 1, h = 20 mm, t = 0.15 s; measured: front at 0.11 / 0.40 L0,
+    the total volume, free volume included, +3.3 / +1.1 % on right / crossed diagonals)."""
+    from dolfin_mpm.app import scenario
+    from dolfin_mpm.app.runner import Runner
+
+    demo = load("demo_column_collapse")
+    keys = demo.overrides(0.02, 1.0, 0.15) + ["output.xdmf=false", "output.figures=false"]
+    cfg = scenario.load(demo.SCENARIO, [*keys, f'mesh.diagonal="{diagonal}"'])
+    sim = scenario.build(cfg)
+    V0 = sim.solver.particles.volume.sum()
+    Runner(sim, tmp_path, progress=False).run()
+    P = sim.solver.particles
+    growth = (P.volume + P.state["free_volume"]).sum() / V0 - 1.0
+    front = demo.runout(P.x)
+    if diagonal == "crossed":
+        assert growth < 0.015 and front > 0.3
+    else:  # locked: what the crossed mesh is measured against
+        assert growth > 0.025 and front < 0.2
 
 
 def test_column_collapse_scatter_runs_each_mesh_with_the_step_off(tmp_path, monkeypatch, capsys):
