@@ -16,14 +16,16 @@ scatter of its own: ``--scatter K`` runs each mesh K more times with the time st
 off and reports the runout's mean and standard deviation, and the mesh change with its
 uncertainty:
 
-    python demos/demo_column_collapse.py                          # a = 2, h = 10 and 5 mm (~2 min)
-    python demos/demo_column_collapse.py --aspect 1 --h 0.01 0.005 0.0025 0.00125   # (~1.5 h)
-    python demos/demo_column_collapse.py --aspect 1 --h 0.005 0.0025 --scatter 2    # (~25 min)
+    python demos/demo_column_collapse.py                          # a = 2, h = 10 and 5 mm (~6 min)
+    python demos/demo_column_collapse.py --aspect 1 --h 0.01 0.005 0.0025           # (~55 min)
+    python demos/demo_column_collapse.py --aspect 1 --h 0.005 0.0025 --scatter 2    # (~2.6 h)
 
-Measured (``docs/numerics.md``): a = 2 runs out 2.78 / 3.37 / 3.32 on h = 10 / 5 / 2.5 mm;
-a = 1 runs out 0.99 / 1.35 / 1.50 / 1.52 on h = 10 / 5 / 2.5 / 1.25 mm, converged to 1.5 % only
-on the finest pair; over five time steps 2 % apart the a = 1 runout is 1.322 ± 0.022 on
-h = 5 mm, and 1.495 ± 0.018 on 2.5 mm over three. Two-dimensional experiments give
+Measured (``docs/numerics.md``), on the scenario's squares of four triangles: a = 1 runs out
+1.59 / 1.70 / 1.66 on h = 10 / 5 / 2.5 mm; over time steps 2 % apart 1.709 ± 0.019 on h = 5 mm
+(five runs) and 1.665 ± 0.014 on 2.5 mm (three): −2.6 ± 1.3 % from 5 to 2.5 mm. a = 2 runs
+out 3.51 / 3.54 on h = 10 / 5 mm.
+On squares of two triangles the column locks (a = 1: 0.99 / 1.35 / 1.50 / 1.52 on h = 10 / 5 /
+2.5 / 1.25 mm, with two thirds of its points apart). Two-dimensional experiments give
 ``ΔL / L0 ≈ 1.2 a`` for a up to 2–3 (Lube et al., Phys. Rev. E 72, 2005). Each mesh's run is
 a scenario run in its own folder (XDMF for ParaView, ``history.csv``, figures); the study
 writes ``collapse.json`` and ``collapse.png``.
