@@ -19,6 +19,7 @@ map time), so studies are resumed rather than repeated:
     python demos/demo_silo.py --study radius       # r = 0, 2.5, 5, 10 mm on one mesh
     python demos/demo_silo.py --study weights      # cubic, constant, Gaussian at r = 5 mm
     python demos/demo_silo.py --study numerics     # the volumetric rate, the stress, the quadrature
+    python demos/demo_silo.py --split 2 1          # cells halved across the flow only (--study split)
     python demos/demo_silo.py --study all --report docs/silo.md
 
 Runs and studies also run on several MPI ranks (``mpirun -n 2 python demos/demo_silo.py
@@ -66,6 +67,17 @@ def check_geometry(width: float, height: float, outlet: float, h: float) -> None
             raise ValueError(f"h = {h} m must divide the {name} = {length} m into whole cells")
 
 
+def check_split(split) -> tuple[int, int]:
+    """``split`` as ``(kx, ky)``; ``ValueError`` unless it is two whole numbers >= 1."""
+    if (
+        not isinstance(split, (tuple, list))
+        or len(split) != 2
+        or not all(isinstance(k, (int, np.integer)) and not isinstance(k, bool) and k >= 1 for k in split)
+    ):
+        raise ValueError(f"split must be two whole numbers >= 1 (cuts across, up), got {split!r}")
+    return int(split[0]), int(split[1])
+
+
 def grid_lines(lo: float, hi: float, h: float, fine: float | None = None, zones=()) -> np.ndarray:
     """Mesh lines from ``lo`` to ``hi`` [m]: ``h`` apart, ``fine`` apart inside the ``zones``."""
     lines = [lo]
@@ -85,8 +97,9 @@ PARTITIONS = ("rebalance", "strips", "dolfinx")
 
 
 def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, height=0.3, outlet=0.1, ppc=4,
-          shift=0.0, edge_cell=None, edge_zone=0.04, comm=MPI.COMM_WORLD, partition="rebalance",
-          rebalance=1.05, law="max", volumetric="nodal", stress="cell", quadrature="cell"):  # fmt: skip
+          shift=0.0, edge_cell=None, edge_zone=0.04, split=(1, 1), comm=MPI.COMM_WORLD,
+          partition="rebalance", rebalance=1.05, law="max", volumetric="nodal", stress="cell",
+          quadrature="cell"):  # fmt: skip
     """The silo on a mesh of ``h`` [m]: solver, sinks and the outlet's gate, before settling.
 
     The walls, the bottom plates and the gate are rigid walls as geometry
@@ -112,6 +125,9 @@ def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, he
             The lines run through the whole mesh: squares of ``edge_cell`` only round the
             edges, columns of ``edge_cell x h`` cells up the silo's height and rows of
             ``h x edge_cell`` cells across its width.
+        split: ``(kx, ky)``, whole numbers >= 1: every square of ``h`` cut into ``kx`` columns
+            and ``ky`` rows, rectangles of ``h / kx x h / ky`` of two triangles each (the cells
+            refined across or up the flow alone); ``(1, 1)``: squares. Not with ``edge_cell``.
         comm: the communicator the mesh is partitioned over.
         partition: on several ranks, :data:`PARTITIONS`: ``"strips"`` keeps vertical strips
             of equal fill; ``"rebalance"`` starts so and deals the strips anew by the
@@ -136,6 +152,9 @@ def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, he
             f"edge_cell must be in (0, h = {h}] m on an unshifted mesh, with edge_zone in (0, width), "
             f"got edge_cell = {edge_cell!r}, edge_zone = {edge_zone!r}, shift = {shift}"
         )
+    kx, ky = check_split(split)
+    if edge_cell is not None and (kx, ky) != (1, 1):
+        raise ValueError(f"split must be (1, 1) with edge_cell, got {tuple(split)}")
     x0, x1 = 0.5 * (width - outlet), 0.5 * (width + outlet)  # outlet edges
     drop = 0.5 * outlet  # free fall below the outlet down to the catch line
     rows_below = math.ceil(drop / h) + 1
@@ -149,7 +168,7 @@ def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, he
         (width + (shift > 0) * (1 - shift) * h, height + h),
     ]  # spare row
     if edge_cell is None:
-        cells = (round(width / h) + (shift > 0), rows_below + round(height / h) + 1)
+        cells = (kx * (round(width / h) + (shift > 0)), ky * (rows_below + round(height / h) + 1))
         share = (lambda c: fill(c[1])) if partition != "dolfinx" else None
         msh = dm.partition.create_rectangle(comm, corners, cells, weight=share, axes=axes)
     else:  # made in cell indices, then its lines are put where they belong
@@ -283,14 +302,14 @@ def settle_and_open(solver, gate, t_settle: float, progress=True) -> float:
 
 
 def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, height=0.3, outlet=0.1,
-        ppc=4, shift=0.0, edge_cell=None, t_end=0.25, t_settle=0.02, output=None, interval=0.005,
-        progress=True, comm=MPI.COMM_WORLD, law="max", volumetric="nodal", stress="cell",
-        quadrature="cell", partition="rebalance"):  # fmt: skip
+        ppc=4, shift=0.0, edge_cell=None, split=(1, 1), t_end=0.25, t_settle=0.02, output=None,
+        interval=0.005, progress=True, comm=MPI.COMM_WORLD, law="max", volumetric="nodal",
+        stress="cell", quadrature="cell", partition="rebalance"):  # fmt: skip
     """Settle the fill, open the outlet at t = 0 and discharge until ``t_end`` [s].
 
     Args:
-        h, radius, weight, wall_friction, width, height, outlet, ppc, shift, edge_cell, comm, law,
-            volumetric, stress, quadrature, partition: as for :func:`build`.
+        h, radius, weight, wall_friction, width, height, outlet, ppc, shift, edge_cell, split, comm,
+            law, volumetric, stress, quadrature, partition: as for :func:`build`.
         t_end: end of the discharge [s].
         t_settle: length of the damped settling phase before the opening [s].
         output: folder for the XDMF series (particles and grid), or ``None``.
@@ -311,8 +330,8 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, heig
     if not t_settle >= 0.0:
         raise ValueError(f"t_settle must be >= 0 s, got {t_settle!r}")
     solver, gate = build(
-        h, radius, weight, wall_friction, width, height, outlet, ppc, shift, edge_cell, comm=comm,
-        partition=partition, law=law,
+        h, radius, weight, wall_friction, width, height, outlet, ppc, shift, edge_cell, split=split,
+        comm=comm, partition=partition, law=law,
         volumetric=volumetric, stress=stress, quadrature=quadrature,
     )  # fmt: skip
     m0 = solver.total_mass()
@@ -349,6 +368,7 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, heig
         "wall_friction": wall_friction,
         "shift": shift,
         "edge_cell": edge_cell,
+        "split": None if tuple(split) == (1, 1) else list(split),
         "t": t,
         "discharged": mass,
         "flow_rate": flow_rate(t, mass),
@@ -518,6 +538,12 @@ STUDIES = {
     "friction": [dict(h=0.01, wall_friction=a) for a in (0.0, 10.0, 20.0, 30.0)],
     "shift": [dict(h=h, radius=0.0, shift=s) for h in (0.01, 0.005) for s in (0.0, 0.5)],
     "edges": [dict(h=0.01, radius=0.0, edge_cell=e) for e in (None, 0.005, 0.0025)],
+    # The cells refined across the flow or up it alone (the uniform meshes: the meshes study).
+    "split": [
+        *(dict(h=0.01, radius=0.0, split=k) for k in ((2, 1), (4, 1), (8, 1), (1, 2), (1, 4))),
+        *(dict(h=0.01, radius=5e-3, split=k) for k in ((2, 1), (4, 1), (8, 1), (1, 2))),
+        *(dict(h=0.005, radius=5e-3, split=k) for k in ((2, 1), (1, 2))),
+    ],
     # The options against locking and stress noise, each on and off (the last: the default).
     "numerics": [
         dict(h=h, volumetric=v, stress=s, quadrature=q)
@@ -548,12 +574,13 @@ ARRAYS = (
 
 
 def run_key(
-    h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, shift=0.0, edge_cell=None, law="max",
-    volumetric="nodal", stress="cell", quadrature="cell",
+    h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, shift=0.0, edge_cell=None, split=(1, 1),
+    law="max", volumetric="nodal", stress="cell", quadrature="cell",
 ) -> str:  # fmt: skip
     """Name of a stored run: the study parameters; every other setting is :func:`run`'s default."""
     shifted = f"_shift{shift:g}" if shift else ""
     edges = f"_edges{1e3 * edge_cell:g}mm" if edge_cell else ""
+    edges += f"_split{split[0]}x{split[1]}" if split is not None and tuple(split) != (1, 1) else ""
     rule = f"_{law}" if law != "max" and radius > 0 else ""
     numerics = (
         (f"_{volumetric}-volumetric" if volumetric != "nodal" else "")
@@ -880,6 +907,7 @@ def report(folder: Path, path: Path) -> str:
         w = band_widths(r)
         shifted = f" (shifted {r['shift']:g} h)" if r.get("shift") else ""
         shifted += f" ({1e3 * r['edge_cell']:g} at the edges)" if r.get("edge_cell") else ""
+        shifted += f" (split {r['split'][0]} x {r['split'][1]})" if r.get("split") else ""
         return (
             f"| {1e3 * r['h']:g}{shifted} | {1e3 * r['radius']:g} | {r['weight']} | {r['wall_friction']:g} "
             f"| {r['flow_rate']:.1f} | {r['e_vp_bar_max']:.1f} "
@@ -937,6 +965,8 @@ def report(folder: Path, path: Path) -> str:
             out += [*noise_lines(runs), ""]
         if name == "edges":
             out += [*edge_lines(runs, studies["meshes"]), ""]
+        if name == "split":
+            out += [*split_lines(runs), ""]
         if name == "friction":
             out += [
                 "| wall friction [°] | flow rate [kg/s/m] | corner speed [m/s] | base slip [m/s] "
@@ -973,7 +1003,7 @@ def report(folder: Path, path: Path) -> str:
 
 #: What ``docs/silo.json`` gives of each run (lengths in m, the flow rate in kg/s/m).
 JSON_FIELDS = (
-    "h", "radius", "weight", "wall_friction", "law", "shift", "edge_cell", "volumetric", "stress",
+    "h", "radius", "weight", "wall_friction", "law", "shift", "edge_cell", "split", "volumetric", "stress",
     "quadrature", "flow_rate", "edge_band_width", "wall_band_width", "channel_width", "mean_iterations",
     "max_iterations", "unconverged", "particles", "steps",
 )  # fmt: skip
@@ -982,20 +1012,46 @@ NUMERICS = dict(volumetric="nodal", stress="cell", quadrature="cell")
 
 
 def write_json(runs, path: Path) -> None:
-    """The stored runs as ``{"default_law", "numerics", "runs", "numerics_runs"}`` in ``path``.
+    """The stored runs as ``{"default_law", "numerics", "runs", "numerics_runs", "split_runs"}`` in ``path``.
 
     Each run gives :data:`JSON_FIELDS`; ``runs`` are those with the default numerics
-    (:data:`NUMERICS`, also given), ``numerics_runs`` the numerics study's others. ``law`` is that
+    (:data:`NUMERICS`, also given) on squares, ``numerics_runs`` the numerics study's others,
+    ``split_runs`` those on rectangles (the ``split`` study). ``law`` is that
     of the non-local runs (``"local"`` for r = 0); the velocity band widths are given for the runs
     that recorded the speed across the bands.
     """
-    rows = {"runs": [], "numerics_runs": []}
+    rows = {"runs": [], "numerics_runs": [], "split_runs": []}
     for r in runs:
         row = {"channel_width": band_widths(r)["channel"], **NUMERICS, **r}
         row["law"] = r.get("law", "max") if r["radius"] > 0 else "local"
         listed = "runs" if all(row[k] == v for k, v in NUMERICS.items()) else "numerics_runs"
+        listed = "split_runs" if row.get("split") else listed
         rows[listed].append({k: row[k] for k in JSON_FIELDS if row.get(k) is not None})
     path.write_text(json.dumps({"default_law": "max", "numerics": NUMERICS, **rows}, indent=1))
+
+
+def split_lines(runs) -> list[str]:
+    """Lines of Markdown: each run's cells across and up, its flux split across the outlet."""
+    bands = [f"{1e2 * lo:g}-{1e2 * hi:g} cm" for lo, hi in itertools.pairwise(OUTLET_BANDS[:-1])]
+    out = [
+        f"| model | cells across x up [mm] | {' | '.join(bands)} | beyond {1e2 * OUTLET_BANDS[-2]:g} cm "
+        "| flow rate [kg/s/m] |",
+        "|---|---|" + "---|" * (len(bands) + 2),
+    ]
+    for r in runs:
+        kx, ky = r.get("split") or (1, 1)
+        shares = r.get("outlet_shares")
+        parts = " | ".join(f"{q:.1f}" for q in shares) if shares is not None else " | ".join(["-"] * 4)
+        model = "local" if r["radius"] == 0 else f"r = {1e3 * r['radius']:g} mm"
+        cells = f"{1e3 * r['h'] / kx:g} x {1e3 * r['h'] / ky:g}"
+        out.append(f"| {model} | {cells} | {parts} | {r['flow_rate']:.1f} |")
+    return [
+        *out,
+        "",
+        "Each square of h cut into KX columns and KY rows (`--split KX KY`): the flux through the "
+        "outlet plane by distance from the nearer edge, in kg/s/m over both edges; the uniform "
+        "meshes are the meshes study's.",
+    ]
 
 
 def law_lines(runs) -> list[str]:
@@ -1085,6 +1141,14 @@ def main():
     parser.add_argument(
         "--shift", type=float, default=0.0, help="mesh shifted sideways by this part of a cell"
     )
+    parser.add_argument(
+        "--split",
+        type=int,
+        nargs=2,
+        default=(1, 1),
+        metavar=("KX", "KY"),
+        help="cut each square of h into KX columns and KY rows (cells refined across or up alone)",
+    )
     parser.add_argument("--volumetric", default="nodal", choices=["cell", "nodal"], help="volumetric rate")
     parser.add_argument("--stress", default="cell", choices=["cell", "particle"], help="stress carried")
     parser.add_argument(
@@ -1094,6 +1158,8 @@ def main():
     parser.add_argument("--report", type=Path, help="write the Markdown report of the stored studies here")
     parser.add_argument("--force", action="store_true", help="run again the runs that are stored")
     args = parser.parse_args()
+    if min(args.split) < 1:
+        parser.error(f"--split: KX and KY must be whole numbers >= 1, got {' '.join(map(str, args.split))}")
     if args.study is None and args.report is None:
         todo = [
             dict(
@@ -1102,6 +1168,7 @@ def main():
                 weight=args.weight,
                 wall_friction=args.wall_friction,
                 shift=args.shift,
+                split=tuple(args.split),
                 law=args.law,
                 volumetric=args.volumetric,
                 stress=args.stress,

@@ -105,11 +105,13 @@ def test_silo_quick_paper_law_and_its_report(tmp_path):
     lines = demo.law_lines(runs)
     assert any(line.startswith("| paper | 20 | wendland | 25 |") for line in lines)
     other = {**runs[0], "volumetric": "cell"}  # a run of the numerics study: listed apart
-    demo.write_json([*runs, other], tmp_path / "silo.json")
+    split = {**runs[0], "split": [2, 1]}  # a run on rectangles: listed apart too
+    demo.write_json([*runs, other, split], tmp_path / "silo.json")
     data = json.loads((tmp_path / "silo.json").read_text())
     assert data["default_law"] == "max" and [r["law"] for r in data["runs"]] == ["local", "paper"]
     assert all(r["volumetric"] == data["numerics"]["volumetric"] == "nodal" for r in data["runs"])
     assert [r["volumetric"] for r in data["numerics_runs"]] == ["cell"]
+    assert [r["split"] for r in data["split_runs"]] == [[2, 1]]
     assert data["runs"][1]["edge_band_width"] == runs[1]["edge_band_width"]
     assert {"h", "radius", "weight", "wall_friction", "flow_rate", "channel_width"} <= set(data["runs"][0])
 
@@ -125,9 +127,37 @@ def test_silo_with_cells_refined_at_the_outlet_edges():
     assert fine.any() and not fine.all()
 
 
+def test_silo_cells_split_across_or_up():
+    """``split`` cuts every square into KX columns and KY rows; the walls stay where they are."""
+    demo = load("demo_silo")
+    square, _ = demo.build(h=0.025, radius=0.0)
+    across, _ = demo.build(h=0.025, radius=0.0, split=(2, 1))
+    up, _ = demo.build(h=0.025, radius=0.0, split=(1, 3))
+    lines = lambda s, c: np.unique(s.grid.node_x[:, c].round(12))  # noqa: E731
+    assert len(lines(across, 0)) - 1 == 2 * (len(lines(square, 0)) - 1)
+    assert np.array_equal(lines(across, 1), lines(square, 1))
+    assert len(lines(up, 1)) - 1 == 3 * (len(lines(square, 1)) - 1)
+    assert np.array_equal(lines(up, 0), lines(square, 0))
+    assert np.isclose(across.grid.h_min, 0.0125 * 0.025 / np.hypot(0.0125, 0.025))  # the time step's h
+    assert [w.points.tolist() for w in across.bcs[:4]] == [w.points.tolist() for w in square.bcs[:4]]
+    assert demo.run_key(h=0.01, radius=0.0, split=(2, 1)) == "h10mm_r0mm_cubic_wall20_split2x1"
+    assert demo.run_key(h=0.01, radius=0.0, split=None) == demo.run_key(h=0.01, radius=0.0)
+    runs = [
+        dict(h=0.01, radius=0.0, split=[2, 1], outlet_shares=[1.0, 2.0, 3.0, 4.0], flow_rate=10.0),
+        dict(h=0.01, radius=5e-3, split=None, flow_rate=9.0),
+    ]
+    table = demo.split_lines(runs)
+    assert table[2] == "| local | 5 x 10 | 1.0 | 2.0 | 3.0 | 4.0 | 10.0 |"
+    assert table[3] == "| r = 5 mm | 10 x 10 | - | - | - | - | 9.0 |"
+
+
 @pytest.mark.parametrize(
     "sizes, match",
     [
+        (dict(split=(0, 1)), "split must be two whole numbers >= 1"),
+        (dict(split=(2.0, 1)), "split must be two whole numbers >= 1"),
+        (dict(split=(2,)), "split must be two whole numbers >= 1"),
+        (dict(split=(2, 1), edge_cell=0.005), "split must be \\(1, 1\\) with edge_cell"),
         (dict(edge_cell=0.02), "edge_cell must be in"),
         (dict(outlet=0.25), "outlet must be narrower"),
         (dict(h=-0.01), "h must be a positive length"),
@@ -219,7 +249,7 @@ def test_column_collapse_mesh_locks_on_two_triangles_per_square(tmp_path, diagon
     from dolfin_mpm.app.runner import Runner
 
     demo = load("demo_column_collapse")
-    keys = demo.overrides(0.02, 1.0, 0.15) + ["output.xdmf=false", "output.figures=false"]
+    keys = [*demo.overrides(0.02, 1.0, 0.15), "output.xdmf=false", "output.figures=false"]
     cfg = scenario.load(demo.SCENARIO, [*keys, f'mesh.diagonal="{diagonal}"'])
     sim = scenario.build(cfg)
     V0 = sim.solver.particles.volume.sum()

@@ -48,8 +48,8 @@ DESCRIPTIONS = {
     "mesh.lower": "lower corner of the generated mesh [m]",
     "mesh.upper": "upper corner of the generated mesh [m], above mesh.lower in every component",
     "mesh.cells": "cells along each axis (whole numbers)",
-    "mesh.diagonal": 'how each square of the rectangle is cut into triangles ("crossed": four, which do not lock '
-    'in isochoric plastic flow; two lock unless solver.volumetric = "nodal")',
+    "mesh.diagonal": 'how each square of the rectangle is cut into triangles ("crossed": four, which do '
+    'not lock in isochoric plastic flow; two lock unless solver.volumetric = "nodal")',
     "mesh.partition": 'axes the ranks\' cuts go across, in turn, at the start and in each rebalance ("x": '
     "strips across x; default: the longest extent of each part)",
     "materials": "the materials, one table per name, which bodies refer to",
