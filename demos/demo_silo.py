@@ -16,7 +16,7 @@ map time), so studies are resumed rather than repeated:
 
     python demos/demo_silo.py                      # one run, h = 10 mm, r = 5 mm (~40 s)
     python demos/demo_silo.py --study meshes       # h = 10, 5, 2.5 mm, local and non-local; 1.25 non-local
-    python demos/demo_silo.py --study radius       # r = 0, 2.5, 5, 10 mm on one mesh
+    python demos/demo_silo.py --study radius       # r = 0, 2.5, 5, 10 mm on h = 5 and 2.5 mm
     python demos/demo_silo.py --study weights      # cubic, constant, Gaussian at r = 5 mm
     python demos/demo_silo.py --study numerics     # the volumetric rate, the stress, the quadrature
     python demos/demo_silo.py --split 2 1          # cells halved across the flow only (--study split)
@@ -533,7 +533,7 @@ STUDIES = {
         *(dict(h=h, radius=r) for r in (0.0, 5e-3) for h in (0.01, 0.005, 0.0025)),
         dict(h=0.00125, radius=5e-3),  # 70 min on two ranks
     ],
-    "radius": [dict(h=H_STUDY, radius=r) for r in (0.0, 2.5e-3, 5e-3, 10e-3)],
+    "radius": [dict(h=h, radius=r) for h in (H_STUDY, 0.0025) for r in (0.0, 2.5e-3, 5e-3, 10e-3)],
     "weights": [dict(h=H_STUDY, radius=5e-3, weight=w) for w in ("cubic", "constant", "gaussian")],
     "friction": [dict(h=0.01, wall_friction=a) for a in (0.0, 10.0, 20.0, 30.0)],
     "shift": [dict(h=h, radius=0.0, shift=s) for h in (0.01, 0.005) for s in (0.0, 0.5)],
@@ -705,12 +705,19 @@ def plot_discharge(results, path: Path, outlet=0.1) -> None:
 
 
 def plot_radius(results, path: Path) -> None:
-    """Flow rate against the non-local radius."""
+    """Flow rate against the non-local radius, a line for each mesh."""
     with figure(path, dpi=130, figsize=(5, 3.6)) as ax:
-        ax.plot([1e3 * r["radius"] for r in results], [r["flow_rate"] for r in results], "o-")
+        for h in sorted({r["h"] for r in results}, reverse=True):
+            rs = sorted((r for r in results if r["h"] == h), key=lambda r: r["radius"])
+            ax.plot(
+                [1e3 * r["radius"] for r in rs],
+                [r["flow_rate"] for r in rs],
+                "o-",
+                label=f"h = {1e3 * h:g} mm",
+            )
         ax.set_xlabel("non-local radius r [mm] (0: local)")
         ax.set_ylabel("flow rate [kg/s/m]")
-        ax.set_title(f"h = {1e3 * results[0]['h']:g} mm", fontsize=10)
+        ax.legend(fontsize=8)
         ax.grid(alpha=0.3)
 
 

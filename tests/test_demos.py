@@ -151,6 +151,14 @@ def test_silo_cells_split_across_or_up():
     assert table[3] == "| r = 5 mm | 10 x 10 | - | - | - | - | 9.0 |"
 
 
+def test_silo_radius_study_on_two_meshes(tmp_path):
+    demo = load("demo_silo")
+    assert sorted({p["h"] for p in demo.STUDIES["radius"]}) == [0.0025, 0.005]
+    runs = [dict(h=h, radius=r, flow_rate=150.0 - 1e3 * r) for h in (0.005, 0.0025) for r in (0.0, 0.005)]
+    demo.plot_radius(runs, tmp_path / "radius.png")
+    assert (tmp_path / "radius.png").stat().st_size > 0
+
+
 @pytest.mark.parametrize(
     "sizes, match",
     [

@@ -16,7 +16,8 @@ class Grid:
     Nodal fields live in the degrees of freedom of a vector P1 space ``V`` (and a scalar P1
     space ``Q`` for the mass), indexed by *node* = block dof, owned nodes first, then ghosts.
     Each step they are assembled from particles with :meth:`assemble`, which sums ghost
-    contributions into their owners and refreshes the ghosts (correct under MPI).
+    contributions into their owners and refreshes the ghosts (correct under MPI; on one rank,
+    where there are no ghosts, it only copies).
 
     Attributes:
         mesh: the DOLFINx mesh (triangles in 2D, tetrahedra in 3D; ``gdim == tdim``).
@@ -39,6 +40,7 @@ class Grid:
     def __init__(self, msh):
         self.mesh = msh
         self.comm = msh.comm
+        self._serial = msh.comm.size == 1  # no ghosts: assembly needs no scatters
         self._comm_owner = msh  # DOLFINx frees a mesh's communicator with the mesh
         #: How a repartitioned mesh was dealt (:meth:`repartitioned`), ``None`` for the first.
         self.partition: tuple[np.ndarray, np.ndarray] | None = None
@@ -137,10 +139,13 @@ class Grid:
             The assembled nodal values as a view, same shape as ``values``.
 
         """
-        u.x.array[:] = values.ravel()
-        compat.scatter_reverse_add(u.x)
-        u.x.scatter_forward()
-        return u.x.array.reshape(values.shape)
+        x = u.x
+        a = x.array
+        a[:] = values.ravel()
+        if not self._serial:
+            compat.scatter_reverse_add(x)
+            x.scatter_forward()
+        return a.reshape(values.shape)
 
     def refresh_ghosts(self, u: fem.Function, owned: np.ndarray) -> np.ndarray:
         """Set the owned values of ``u`` to ``owned`` (flat) and its ghosts from their owners.
@@ -149,9 +154,12 @@ class Grid:
             All of ``u``'s values, a flat view.
 
         """
-        u.x.array[: owned.size] = owned
-        u.x.scatter_forward()
-        return u.x.array
+        x = u.x
+        a = x.array
+        a[: owned.size] = owned
+        if not self._serial:
+            x.scatter_forward()
+        return a
 
     def nodes_where(self, predicate: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
         """Nodes whose coordinates satisfy ``predicate(x)``, ``x.shape=(3, num_points)``."""

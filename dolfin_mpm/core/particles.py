@@ -96,7 +96,7 @@ class Particles:
 
 def _component_first(a: np.ndarray) -> bool:
     """Whether ``a`` is a particle-first view of component-first memory (as the kernels write)."""
-    return a.ndim > 1 and not a.flags.c_contiguous and np.moveaxis(a, 0, -1).flags.c_contiguous
+    return a.ndim > 1 and not a.flags.c_contiguous and a.transpose((*range(1, a.ndim), 0)).flags.c_contiguous
 
 
 def _select(a: np.ndarray, index: np.ndarray) -> np.ndarray:

@@ -44,7 +44,7 @@ def nodal_volumetric(
     """
     if weight is None:
         weight = nodal_volume(grid, basis, volume)
-    Lc = np.moveaxis(L, 0, -1)  # component-first: what gradient() gives, viewed particle-first
+    Lc = L.transpose(1, 2, 0)  # component-first: what gradient() gives, viewed particle-first
     copied = not Lc.flags.c_contiguous
     if copied:
         Lc = np.ascontiguousarray(Lc)
@@ -54,5 +54,5 @@ def nodal_volumetric(
         tr_node = np.where(weight > 0.0, total / weight, 0.0)
     replace_volumetric(basis, tr_node, tr, Lc)
     if copied:
-        L[...] = np.moveaxis(Lc, -1, 0)
+        L[...] = Lc.transpose(2, 0, 1)
     return L

@@ -284,14 +284,14 @@ def contacts(
             lines[k][1].append(bc)
     if not lines:
         return out
+    # each wall's mass at the nodes: of the particles within a cell of its line, over it (one
+    # pass over the particles for all the walls)
+    every_wall = [w for _, line in lines.values() for w in line]
+    shares = iter(_wall_shares(x, m, basis, every_wall, grid.diameter, time))
     for k, (_, line) in lines.items():
         w0 = line[0]
         behind = np.flatnonzero((w0.distance(grid.node_x, time) <= tol) & (mass > 0.0))
-        # each wall's mass at the nodes: of the particles within a cell of its line, over it
-        shares = _wall_shares(x, m, basis, line, grid.diameter, time)
-        members = [
-            (w, grid.assemble(grid.scratch, share)[behind] / mass[behind]) for w, share in zip(line, shares)
-        ]
+        members = [(w, grid.assemble(grid.scratch, next(shares))[behind] / mass[behind]) for w in line]
         touched = np.logical_or.reduce([alpha > 0.0 for _, alpha in members])
         nodes = behind[touched]
         members = [(w, alpha[touched]) for w, alpha in members]

@@ -1,7 +1,8 @@
 """Anderson acceleration of a fixed-point iteration ``x = G(x)`` on distributed vectors."""
 
 import numpy as np
-from mpi4py import MPI
+
+from dolfin_mpm.parallel.reduce import sum_over_ranks
 
 __all__ = ["Anderson"]
 
@@ -35,7 +36,7 @@ class Anderson:
             return g
         dF = np.array(self._dF)  # (m, n)
         local = np.concatenate([(dF @ dF.T).ravel(), dF @ f])
-        total = self.comm.allreduce(local, MPI.SUM)
+        total = sum_over_ranks(self.comm, local)
         m = len(self._dF)
         A, b = total[: m * m].reshape(m, m), total[m * m :]
         A += 1e-12 * np.trace(A) * np.eye(m) + 1e-300 * np.eye(m)

@@ -53,6 +53,7 @@ from dolfin_mpm.explicit.timer import Timer
 from dolfin_mpm.materials.base import Trial
 from dolfin_mpm.materials.separation import separate
 from dolfin_mpm.parallel.migration import migrate
+from dolfin_mpm.parallel.reduce import max_over_ranks, sum_over_ranks
 
 __all__ = ["CORRECTION", "STAGES", "Model", "Nodal", "SimulationError", "advance", "p2g"]
 
@@ -148,7 +149,7 @@ def p2g(
     for c in range(grid.gdim):  # from the assembled mass
         f_ext[:, c] = m * model.gravity[c]
     f_int = grid.assemble(grid.f_int, f_int)
-    m_max = grid.comm.allreduce(m.max() if m.size else 0.0, MPI.MAX)
+    m_max = max_over_ranks(grid.comm, m.max() if m.size else 0.0)
     active = m > model.options.mass_tol * m_max
     inv_m = np.zeros_like(m)
     inv_m[active] = 1.0 / m[active]
@@ -385,7 +386,7 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         if state.R_changes and options.extrapolation:
             R_in = R_start + _predicted_change(state.R_changes, options.extrapolation)
             R_node = grid.refresh_ghosts(grid.f_int, R_in).copy()  # f_int takes the next R
-        scale_F = math.sqrt(comm.allreduce(float(nodal.f_ext[:owned] @ nodal.f_ext[:owned]), MPI.SUM))
+        scale_F = math.sqrt(sum_over_ranks(comm, nodal.f_ext[:owned] @ nodal.f_ext[:owned]))
         mixer = Anderson(options.anderson_depth, comm)
         converged = False
         if law.iterative:  # from the last step's end: the paper's rates, the overstress increments
@@ -404,7 +405,7 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         if paper:  # the rates by semismooth Newton, from the last iterate's (or step's)
             u_trial = constitutive.gather(P, [t.q for t in trials]) / two_G  # q_trial / 2G
             timer.lap("return_mapping")
-            size = math.sqrt(comm.allreduce(float(u_trial @ u_trial), MPI.SUM))
+            size = math.sqrt(sum_over_ranks(comm, u_trial @ u_trial))
             tol_u = LAW_TOL * options.fixed_point_tol * size
             of_rate = lambda u: constitutive.increments_of_rates(P, trials, u, dt)  # noqa: E731
             applied, de, inner = solve_rates(average, of_rate, guess, comm, tol_u)
@@ -419,7 +420,7 @@ def advance(model: Model, state: State, timer: Timer) -> None:
             free = y > 0.0  # not at an apex, where a point is stress free whatever its neighbours
             b = two_G * c / np.where(free, y, 1.0) ** N
             timer.lap("return_mapping")
-            size = math.sqrt(comm.allreduce(float(q_trial @ q_trial), MPI.SUM))
+            size = math.sqrt(sum_over_ranks(comm, q_trial @ q_trial))
             tol_q = LAW_TOL * options.fixed_point_tol * size
             f_t = q_trial - y
             f, inner = solve_overstress(
@@ -448,7 +449,7 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         weighted = volume if weights is None else volume * weights
         R = grid.assemble(grid.f_int, internal_force(basis, sigma, weighted)).ravel()[:owned].copy()
         timer.lap("internal_force")
-        norms = np.sqrt(comm.allreduce(np.array([(R - R_in) @ (R - R_in), R @ R]), MPI.SUM))
+        norms = np.sqrt(sum_over_ranks(comm, [(R - R_in) @ (R - R_in), R @ R]))
         converged = norms[0] <= options.fixed_point_tol * max(norms[1], scale_F, 1e-300)
         if law.iterative:  # and the law at every rank's points
             converged &= comm.allreduce(inner["converged"], MPI.LAND)

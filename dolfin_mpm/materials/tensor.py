@@ -30,12 +30,17 @@ MANDEL_DEVIATORIC = np.eye(6) - np.outer(MANDEL_IDENTITY, MANDEL_IDENTITY) / 3.0
 
 def component_first(a: np.ndarray) -> np.ndarray:
     """Contiguous ``shape=(..., n)`` array of ``a.shape=(n, ...)`` (no copy when already so)."""
-    return np.ascontiguousarray(np.moveaxis(a, 0, -1))
+    return np.ascontiguousarray(a.transpose(_ROLL_BACK[a.ndim]))
 
 
 def particle_first(c: np.ndarray) -> np.ndarray:
     """The ``shape=(n, ...)`` view of a component-first array."""
-    return np.moveaxis(c, -1, 0)
+    return c.transpose(_ROLL_FRONT[c.ndim])
+
+
+# The axes of both moves by the array's rank (np.moveaxis's checks cost more than these views).
+_ROLL_BACK = {d: (*range(1, d), 0) for d in range(1, 6)}
+_ROLL_FRONT = {d: (d - 1, *range(d - 1)) for d in range(1, 6)}
 
 
 def deviator(sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
