@@ -24,6 +24,7 @@ from dolfin_mpm.app.cli import main
 from dolfin_mpm.core.locate import locate
 from dolfin_mpm.parallel.halo import DistributedAverage
 from dolfin_mpm.parallel.migration import migrate
+from dolfin_mpm.parallel.reduce import max_over_ranks, sum_over_ranks
 
 comm = MPI.COMM_WORLD
 
@@ -197,6 +198,27 @@ def test_silo_demo_on_all_ranks_records_what_the_serial_run_does(tmp_path):
     distance, match = cKDTree(serial["x"]).query(parallel["x"])
     assert np.unique(match).size == len(match) and distance.max() < 1e-9
     assert (output / "particles.xdmf").exists()
+
+
+def test_sums_and_maxima_over_ranks_give_every_rank_the_same():
+    values = [comm.rank + 1.0, -2.0 * comm.rank]
+    total = sum_over_ranks(comm, values)
+    n = comm.size
+    assert np.array_equal(total, [n * (n + 1) / 2, -float(n * (n - 1))])
+    assert total is not values and sum_over_ranks(comm, 2.5).shape == ()
+    assert max_over_ranks(comm, float(comm.rank)) == n - 1.0
+    assert comm.allgather(total.tolist()) == [total.tolist()] * n
+
+
+def test_assembly_sums_the_ranks_shares_into_the_owners_and_back():
+    """Each rank puts 1 on every node it holds: a node then holds the number of ranks that hold it."""
+    grid = dm.Grid(rectangle((0, 0), (1, 1), (4, 4)))
+    index_map = grid.V.dofmap.index_map
+    glob = index_map.local_to_global(np.arange(grid.num_nodes, dtype=np.int32))
+    holders = np.bincount(np.concatenate(comm.allgather(glob)))
+    assembled = grid.assemble(grid.scratch, np.ones(grid.num_nodes))
+    assert np.array_equal(assembled, holders[glob])
+    assert comm.size == 1 or comm.allreduce(int(holders.max()), MPI.MAX) > 1  # some node is shared
 
 
 def test_bad_partition_weight_fails_on_every_rank():
