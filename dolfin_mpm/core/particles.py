@@ -5,7 +5,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from dolfin_mpm.materials.tensor import component_first, particle_first
+from dolfin_mpm.materials.tensor import component_first, component_view, particle_first
 
 __all__ = ["Particles", "Sink"]
 
@@ -96,7 +96,7 @@ class Particles:
 
 def _component_first(a: np.ndarray) -> bool:
     """Whether ``a`` is a particle-first view of component-first memory (as the kernels write)."""
-    return a.ndim > 1 and not a.flags.c_contiguous and a.transpose((*range(1, a.ndim), 0)).flags.c_contiguous
+    return a.ndim > 1 and not a.flags.c_contiguous and component_view(a).flags.c_contiguous
 
 
 def _select(a: np.ndarray, index: np.ndarray) -> np.ndarray:

@@ -14,6 +14,7 @@ import numpy as np
 from dolfin_mpm.core.grid import Grid
 from dolfin_mpm.core.locate import Basis
 from dolfin_mpm.core.transfer import replace_volumetric, scatter, volumetric_sums
+from dolfin_mpm.materials.tensor import component_view, particle_first
 
 __all__ = ["nodal_volume", "nodal_volumetric"]
 
@@ -44,7 +45,7 @@ def nodal_volumetric(
     """
     if weight is None:
         weight = nodal_volume(grid, basis, volume)
-    Lc = L.transpose(1, 2, 0)  # component-first: what gradient() gives, viewed particle-first
+    Lc = component_view(L)  # component-first: what gradient() gives, viewed particle-first
     copied = not Lc.flags.c_contiguous
     if copied:
         Lc = np.ascontiguousarray(Lc)
@@ -54,5 +55,5 @@ def nodal_volumetric(
         tr_node = np.where(weight > 0.0, total / weight, 0.0)
     replace_volumetric(basis, tr_node, tr, Lc)
     if copied:
-        L[...] = Lc.transpose(2, 0, 1)
+        L[...] = particle_first(Lc)
     return L

@@ -12,6 +12,7 @@ __all__ = [
     "MANDEL_DEVIATORIC",
     "MANDEL_IDENTITY",
     "component_first",
+    "component_view",
     "deviator",
     "equivalent_stress",
     "from_mandel",
@@ -30,7 +31,12 @@ MANDEL_DEVIATORIC = np.eye(6) - np.outer(MANDEL_IDENTITY, MANDEL_IDENTITY) / 3.0
 
 def component_first(a: np.ndarray) -> np.ndarray:
     """Contiguous ``shape=(..., n)`` array of ``a.shape=(n, ...)`` (no copy when already so)."""
-    return np.ascontiguousarray(a.transpose(_ROLL_BACK[a.ndim]))
+    return np.ascontiguousarray(component_view(a))
+
+
+def component_view(a: np.ndarray) -> np.ndarray:
+    """The ``shape=(..., n)`` view of ``a.shape=(n, ...)``, contiguous or not."""
+    return a.transpose(_ROLL_BACK[a.ndim])
 
 
 def particle_first(c: np.ndarray) -> np.ndarray:
