@@ -511,6 +511,12 @@ def outlet_shares(x, flux, x0, x1) -> list[float]:
     return [float(flux[(d >= lo) & (d < hi)].sum() * dx) for lo, hi in itertools.pairwise(OUTLET_BANDS)]
 
 
+def outlet_band_names() -> list[str]:
+    """The names of the bands of :data:`OUTLET_BANDS`: ``"0-1 cm"``, ..., ``"beyond 3 cm"``."""
+    bands = [f"{1e2 * lo:g}-{1e2 * hi:g} cm" for lo, hi in itertools.pairwise(OUTLET_BANDS[:-1])]
+    return [*bands, f"beyond {1e2 * OUTLET_BANDS[-2]:g} cm"]
+
+
 def flow_rate(t, mass, t_from=T_STEADY):
     """Steady mass flow rate [kg/s per metre]: slope of the discharged mass after ``t_from``."""
     late = t >= t_from
@@ -1039,16 +1045,17 @@ def write_json(runs, path: Path) -> None:
 
 def split_lines(runs) -> list[str]:
     """Lines of Markdown: each run's cells across and up, its flux split across the outlet."""
-    bands = [f"{1e2 * lo:g}-{1e2 * hi:g} cm" for lo, hi in itertools.pairwise(OUTLET_BANDS[:-1])]
+    bands = outlet_band_names()
     out = [
-        f"| model | cells across x up [mm] | {' | '.join(bands)} | beyond {1e2 * OUTLET_BANDS[-2]:g} cm "
-        "| flow rate [kg/s/m] |",
-        "|---|---|" + "---|" * (len(bands) + 2),
+        f"| model | cells across x up [mm] | {' | '.join(bands)} | flow rate [kg/s/m] |",
+        "|---|---|" + "---|" * (len(bands) + 1),
     ]
     for r in runs:
         kx, ky = r.get("split") or (1, 1)
         shares = r.get("outlet_shares")
-        parts = " | ".join(f"{q:.1f}" for q in shares) if shares is not None else " | ".join(["-"] * 4)
+        parts = (
+            " | ".join(f"{q:.1f}" for q in shares) if shares is not None else " | ".join(["-"] * len(bands))
+        )
         model = "local" if r["radius"] == 0 else f"r = {1e3 * r['radius']:g} mm"
         cells = f"{1e3 * r['h'] / kx:g} x {1e3 * r['h'] / ky:g}"
         out.append(f"| {model} | {cells} | {parts} | {r['flow_rate']:.1f} |")
@@ -1202,8 +1209,7 @@ def main():
             f"{r['seconds']:.0f} s{ranks(r)}, {r['mean_iterations']:.2f} iterations per step"
         )
         if "outlet_shares" in r:  # stored runs made before it have none
-            bands = [f"{1e2 * lo:g}-{1e2 * hi:g} cm" for lo, hi in itertools.pairwise(OUTLET_BANDS[:-1])]
-            bands.append(f"beyond {1e2 * OUTLET_BANDS[-2]:g} cm")
+            bands = outlet_band_names()
             print(
                 "  through the outlet by distance from its edges: "
                 + ", ".join(f"{b} {q:.1f}" for b, q in zip(bands, r["outlet_shares"]))
