@@ -116,6 +116,19 @@ def test_silo_quick_paper_law_and_its_report(tmp_path):
     assert {"h", "radius", "weight", "wall_friction", "flow_rate", "channel_width"} <= set(data["runs"][0])
 
 
+def test_silo_quick_overnonlocal_mix_is_named_by_its_factor():
+    """A mix of m = 1.01 converges where r spans two points; its runs and rows carry m."""
+    demo = load("demo_silo")
+    quick = dict(h=0.025, t_end=0.05, t_settle=0.01, progress=False, radius=0.02, weight="wendland")
+    r = demo.run(law="overnonlocal", m=1.01, **quick)
+    assert r["unconverged"] == 0 and r["mean_iterations"] > 1.0 and r["m"] == 1.01
+    assert demo.law_label(r) == "overnonlocal m = 1.01" and demo.law_label({**r, "radius": 0.0}) == "local"
+    key = demo.run_key(h=0.01, radius=5e-3, weight="wendland", law="overnonlocal", m=1.01)
+    assert key == "h10mm_r5mm_wendland_wall20_overnonlocal_m1.01"
+    with pytest.raises(ValueError, match="needs its factor m"):
+        demo.build(h=0.025, radius=0.02, weight="wendland", law="overnonlocal")
+
+
 def test_silo_with_cells_refined_at_the_outlet_edges():
     demo = load("demo_silo")
     r = demo.run(h=0.025, radius=0.0, edge_cell=0.0125, t_end=0.05, t_settle=0.005, progress=False)

@@ -94,7 +94,7 @@ def test_max_law_is_not_iterated():
     assert not NonlocalLaw().iterative and NonlocalLaw("paper").iterative
 
 
-@pytest.mark.parametrize("name", ["nonlocal", "overnonlocal", "", None])
+@pytest.mark.parametrize("name", ["nonlocal", "over-nonlocal", "", None])
 def test_bad_laws_are_named(name):
     with pytest.raises(ValueError, match="law must be one of"):
         NonlocalLaw(name)
@@ -152,3 +152,67 @@ def test_boundary_correction_gives_the_missing_weight_to_the_point_itself(weight
     assert own_share > 3.0 * own_share_plain
     missing = 1.0 - plain.denominator[corner] / ball_weight(weight, r, 2)
     assert own_share == pytest.approx(missing + own_share_plain * (1.0 - missing), rel=1e-12)
+
+
+def mix_bound(average) -> float:
+    """The largest admissible factor of the over-non-local mix, ``1 / (1 - min A_ii)``."""
+    return 1.0 / (1.0 - average.own_weight.min())
+
+
+def test_overnonlocal_mix_relaxes_by_its_mix_of_the_end_states_rates():
+    """Solved to 1e-14: ``d = m A u + (1 - m) u`` with ``u`` the rate of each end state, ``d >= 0``."""
+    x, volume, trial = cloud(2)
+    average = NonlocalAverage(0.1, "wendland")
+    average.update(x, volume, np.arange(len(x)))
+    bound = mix_bound(average)  # r spans 2.4 spacings: A_ii >= 0.38
+    assert 1.5 < bound < 1.7
+    rates = lambda u: SAND.increment_of_rate(trial, u, DT)  # noqa: E731
+    solved = {}
+    for m in (None, 0.5 * (1.0 + bound)):  # None: the paper's law
+        law = NonlocalLaw("paper") if m is None else NonlocalLaw("overnonlocal", m)
+        d, u_solved, stats = solve_rates(law.applied(average), rates, np.zeros(len(x)), MPI.COMM_SELF, 1e-14)
+        assert stats["converged"] and stats["newton"] <= 12, stats
+        u, _ = rate_of_end_state(trial, d)
+        assert np.abs(u - u_solved).max() <= 1e-9 * u.max()
+        expected = average(u) if m is None else m * average(u) + (1.0 - m) * u
+        assert np.abs(d - expected).max() <= 1e-9 * d.max()
+        assert d.min() >= 0.0 and np.all(law.own_weights(average) > 0.0 if m else True)
+        solved[m] = u
+    # Over-non-local: the band's core flows faster than with the paper's law, its rate less spread.
+    paper, mix = solved.values()
+    assert mix.max() > 1.02 * paper.max()
+
+
+def test_overnonlocal_mix_beyond_its_bound_has_a_point_whose_own_rate_lowers_its_increment():
+    """Where ``m A_ii + 1 - m < 0`` a point's row of ``B u - delta(u)`` falls as its rate grows."""
+    x, volume, trial = cloud(2)
+    average = NonlocalAverage(0.2, "wendland")  # r spans 4.8 spacings: A_ii ~ 0.1 inside
+    average.update(x, volume, np.arange(len(x)))
+    law = NonlocalLaw("overnonlocal", 2.0)
+    assert mix_bound(average) < 1.15 and law.own_weights(average).max() < 0.0
+    B = law.applied(average)
+    i = int(np.argmax(trial.q / SAND.yield_value(trial)))  # the most overstressed point
+    u = np.zeros(len(x))
+    rows = []
+    for u_i in (0.0, 1e-4, 2e-4):
+        u[i] = u_i
+        delta, _ = SAND.increment_of_rate(trial, u, DT)
+        rows.append((B(u) - delta)[i])
+    assert rows[0] < 0.0 and rows[2] < rows[1] < rows[0]  # r_i(0) < 0 and falling: no u_i solves it
+
+
+@pytest.mark.parametrize(
+    "law, m, message",
+    [
+        ("overnonlocal", None, "needs its factor m"),
+        ("overnonlocal", 1.0, r"m must be in \(1, inf\)"),
+        ("overnonlocal", 0.5, r"m must be in \(1, inf\)"),
+        ("overnonlocal", float("nan"), r"m must be in \(1, inf\)"),
+        ("overnonlocal", float("inf"), r"m must be in \(1, inf\)"),
+        ("paper", 2.0, "m is the factor of law 'overnonlocal'"),
+        ("max", 1.5, "m is the factor of law 'overnonlocal'"),
+    ],
+)
+def test_bad_mix_factors_are_named(law, m, message):
+    with pytest.raises(ValueError, match=message):
+        NonlocalLaw(law, m)

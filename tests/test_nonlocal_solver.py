@@ -107,3 +107,15 @@ def test_averaging_needs_a_split_material():
     mat = dm.LinearElastic(1e3, 0.3, 1.0)
     with pytest.raises(ValueError, match="averaging needs"):
         dm.Solver(grid, dm.seed(grid, mat, ppc=1), mat, averaging=dm.NonlocalAverage(0.1))
+
+
+def test_overnonlocal_mix_beyond_its_bound_stops_naming_the_point():
+    """r = 20 mm spans ~6 spacings: a point's own share A_ii ~ 0.02, so m = 3 gives it a negative
+    own weight in the mix; the first step stops, naming the point and the bound."""
+    law = dm.NonlocalLaw("overnonlocal", 3.0)
+    expected = (
+        r"step 0, .*law 'overnonlocal' with m = 3 has no unique solution.*particle \d+ at x = .*"
+        r"m must be below 1 / \(1 - A_ii\) = 1\.0"
+    )
+    with pytest.raises(dm.SimulationError, match=expected):
+        collapse(dm.NonlocalAverage(0.02, "wendland", law=law), steps=1)

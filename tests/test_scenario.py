@@ -51,7 +51,7 @@ friction_angle = 95.0
 
 [nonlocal]
 radius = 0.1
-law = "overnonlocal"
+law = "gradient"
 
 [solver]
 stress = "node"
@@ -76,7 +76,7 @@ def test_every_problem_is_reported_with_its_toml_path(tmp_path):
         'mesh.upper: must be an array of 2 numbers, got [1.0, "top"]',
         "materials.sand.nu: missing (must be in (-1, 0.5))",
         "materials.sand.phi: must be in (0, 90) degrees, got 120",
-        'nonlocal.law: must be one of "max", "paper", "overstress", got "overnonlocal"',
+        'nonlocal.law: must be one of "max", "paper", "overstress", "overnonlocal", got "gradient"',
         'bodies.block.material: must be one of "sand", got "clay"',
         "bodies.block.ppc: must be a square number (1, 4, 9, ...) on triangles, got 3",
         "walls.floor.friction_angle: must be in [0, 90) degrees, got 95.0",
@@ -407,3 +407,24 @@ def test_a_bad_output_layout_is_named(value, match):
     with pytest.raises(scenario.ScenarioError, match=match):
         scenario.load(DEMOS / "silo.toml", [f"output.layout={value}"])
     assert scenario.load(DEMOS / "silo.toml", ['output.layout="per-rank"'])["output"]["layout"] == "per-rank"
+
+
+@pytest.mark.parametrize(
+    "overrides, message",
+    [
+        (['nonlocal.law="overnonlocal"'], r'nonlocal\.m: missing: law "overnonlocal" needs its factor m'),
+        (['nonlocal.law="overnonlocal"', "nonlocal.m=1.0"], r"nonlocal\.m: must be > 1, got 1\.0"),
+        (['nonlocal.law="overnonlocal"', "nonlocal.m=nan"], r"nonlocal\.m: must be > 1, got nan"),
+        (["nonlocal.m=2.0"], r'nonlocal\.m: the factor of law "overnonlocal" alone, got it with law "max"'),
+    ],
+)
+def test_bad_mix_factors_are_named_with_their_toml_path(overrides, message):
+    with pytest.raises(scenario.ScenarioError, match=message):
+        scenario.load(DEMOS / "silo.toml", ['nonlocal.weight="wendland"', *overrides])
+
+
+def test_the_mix_factor_reaches_the_law():
+    cfg = scenario.load(
+        DEMOS / "silo.toml", ['nonlocal.law="overnonlocal"', "nonlocal.m=1.01", 'nonlocal.weight="wendland"']
+    )
+    assert (cfg["nonlocal"]["law"], cfg["nonlocal"]["m"]) == ("overnonlocal", 1.01)

@@ -25,7 +25,7 @@ except ModuleNotFoundError:  # Python < 3.11
 from mpi4py import MPI
 
 from dolfin_mpm.app.regions import Expression, Region
-from dolfin_mpm.averaging.law import LAWS
+from dolfin_mpm.averaging.law import LAWS, MIX, NonlocalLaw
 from dolfin_mpm.averaging.nonlocal_average import WEIGHTS, NonlocalAverage
 from dolfin_mpm.core import compat
 from dolfin_mpm.core.boundary import FixedBC, FrictionalWall, SlipBC, VelocityBC
@@ -576,15 +576,23 @@ def _material(c: _Checker, t: dict, path: str) -> dict:
 
 def _nonlocal(c: _Checker, t: dict | None, materials: dict) -> dict:
     if t is None:
-        return {"radius": 0.0, "weight": "cubic", "skin": None, "law": "max", "boundary_correction": False}
-    c.keys(t, "nonlocal", ("radius", "weight", "skin", "law", "boundary_correction"))
+        return {
+            "radius": 0.0, "weight": "cubic", "skin": None, "law": "max", "m": None,
+            "boundary_correction": False,
+        }  # fmt: skip
+    c.keys(t, "nonlocal", ("radius", "weight", "skin", "law", "m", "boundary_correction"))
     n = {
         "radius": c.value(t, "nonlocal", "radius", "number", 0.0, True, NonlocalAverage.RADIUS),
         "weight": c.value(t, "nonlocal", "weight", "string", "cubic", check=tuple(WEIGHTS)),
         "skin": c.value(t, "nonlocal", "skin", "number", None, check=NonlocalAverage.SKIN),
         "law": c.value(t, "nonlocal", "law", "string", "max", check=LAWS),
+        "m": c.value(t, "nonlocal", "m", "number", None, check=MIX),
         "boundary_correction": c.value(t, "nonlocal", "boundary_correction", "bool", False),
     }
+    if n["law"] == "overnonlocal" and "m" not in t:
+        c.fail("nonlocal.m", f'missing: law "overnonlocal" needs its factor m ({MIX.describe()})')
+    elif n["law"] not in ("overnonlocal", None) and n["m"] is not None:
+        c.fail("nonlocal.m", f'the factor of law "overnonlocal" alone, got it with law "{n["law"]}"')
     if n["law"] not in ("max", None) and n["weight"] not in ("wendland", None):
         c.fail(
             "nonlocal.law",
@@ -1062,7 +1070,9 @@ def build(cfg: dict, comm=MPI.COMM_WORLD) -> Simulation:
     sinks = [Sink(name, region=_make_region(s["region"], tol)) for name, s in cfg["sinks"].items()]
     n = cfg["nonlocal"]
     averaging = (
-        NonlocalAverage(n["radius"], n["weight"], n["skin"], n["law"], n["boundary_correction"])
+        NonlocalAverage(
+            n["radius"], n["weight"], n["skin"], NonlocalLaw(n["law"], n["m"]), n["boundary_correction"]
+        )
         if n["radius"] > 0.0
         else None
     )

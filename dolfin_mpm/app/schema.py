@@ -67,7 +67,9 @@ DESCRIPTIONS = {
     "nonlocal.radius": "support radius r of the average [m] (0: the local model)",
     "nonlocal.weight": "weight function over the ball of radius r",
     "nonlocal.skin": "extra search distance that lets pairs be reused [m] (default: r / 4)",
-    "nonlocal.law": 'how the average enters the stress ("paper" and "overstress" need weight "wendland")',
+    "nonlocal.law": 'how the average enters the stress ("paper", "overstress" and "overnonlocal" need weight '
+    '"wendland")',
+    "nonlocal.m": 'factor m > 1 of law "overnonlocal", d = m A u + (1 - m) u (that law needs it)',
     "nonlocal.boundary_correction": "the weight a point misses beyond a free surface or a wall goes to "
     "its own value",
     "bodies": "the bodies of material points, one table per name",

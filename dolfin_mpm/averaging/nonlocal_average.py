@@ -379,6 +379,16 @@ class NonlocalAverage:
         """
         return self._volume * self.denominator
 
+    @property
+    def own_weight(self) -> np.ndarray:
+        """``A_ii``, each point's share of its own average [-], ``shape=(n,)``.
+
+        ``V_i / D_i`` (``w(0) = 1``); with ``boundary_correction``, ``(V_i + W - D_i) / W`` where
+        ``D_i < W``. It falls as r spans more points.
+        """
+        D = self.denominator
+        return (self._volume + self._missing) / D if self.boundary_correction else self._volume / D
+
     def _set_denominator(self, D: np.ndarray) -> None:
         if self.boundary_correction:
             full = ball_weight(self.weight, self.radius, self._x_slot.shape[1])

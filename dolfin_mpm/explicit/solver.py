@@ -89,6 +89,7 @@ class Solver:
             needs, what = {
                 "overstress": ("perzyna", "a Perzyna law of finite viscosity"),
                 "paper": ("increment_of_rate", "the increment of a given rate (a viscous law)"),
+                "overnonlocal": ("increment_of_rate", "the increment of a given rate (a viscous law)"),
             }[averaging.law.name]
             lacking = [type(m).__name__ for m in materials if m.plastic and not hasattr(m, needs)]
             if needs == "perzyna":  # the rate-independent limit has no overstress to average

@@ -391,7 +391,10 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         converged = False
         if law.iterative:  # from the last step's end: the paper's rates, the overstress increments
             guess = P.state[CORRECTION].copy()
-    paper = law is not None and law.name == "paper"
+    paper = law is not None and law.rates  # the paper's law or the over-non-local mix
+    if paper:
+        applied_of = law.applied(average)  # d = A u, or the mix m A u + (1 - m) u
+        _check_mix(state, law, average, comm)
     overstress = law is not None and law.name == "overstress"
     applied = None
     if law is not None and law.iterative:
@@ -408,7 +411,7 @@ def advance(model: Model, state: State, timer: Timer) -> None:
             size = math.sqrt(sum_over_ranks(comm, u_trial @ u_trial))
             tol_u = LAW_TOL * options.fixed_point_tol * size
             of_rate = lambda u: constitutive.increments_of_rates(P, trials, u, dt)  # noqa: E731
-            applied, de, inner = solve_rates(average, of_rate, guess, comm, tol_u)
+            applied, de, inner = solve_rates(applied_of, of_rate, guess, comm, tol_u)
             guess = de  # the next iterate starts from these rates
             de_bar = applied
             state.fixed_point["newton"] += inner["newton"]
@@ -535,6 +538,32 @@ def _predicted_change(R_changes: list[np.ndarray], order: int) -> np.ndarray:
     """The change of the owned ``R`` in this step, extrapolated from the last steps' changes."""
     dR = R_changes[:order]
     return 2.0 * dR[0] - dR[1] if len(dR) == 2 else dR[0]
+
+
+def _check_mix(state: State, law, average, comm: MPI.Comm) -> None:
+    """Stop where the over-non-local mix may have no solution: a point's own weight ``m A_ii + 1 - m <= 0``.
+
+    Collective: every rank raises, the one holding the worst point naming it.
+    """
+    own = law.own_weights(average)
+    if own is None:
+        return
+    worst = own.min(initial=np.inf)
+    if max_over_ranks(comm, -worst) < 0.0:
+        return
+    P = state.particles
+    if worst <= 0.0:
+        i = int(np.argmin(own))
+        A_ii = (own[i] - 1.0 + law.m) / law.m
+        where = f"particle {P.id[i]} at x = {P.x[i]}: own weight m A_ii + 1 - m = {own[i]:.3g}"
+        bound = f"m must be below 1 / (1 - A_ii) = {1.0 / (1.0 - A_ii):.4g} there"
+    else:
+        where, bound = "a particle of another rank", "see that rank's message"
+    raise SimulationError(
+        f"step {state.step}, t = {state.time:.6g} s: law 'overnonlocal' with m = {law.m:g} has no unique "
+        f"solution where a point's own rate lowers its own increment: {where}; {bound} "
+        "(dolfin_mpm.averaging.law)"
+    )
 
 
 def _check_finite(state: State) -> None:

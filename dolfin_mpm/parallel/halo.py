@@ -63,6 +63,11 @@ class DistributedAverage:
         """The wrapped average's metric of this rank's particles (its halo's left out)."""
         return self.average.metric[: self.n]
 
+    @property
+    def own_weight(self) -> np.ndarray:
+        """The wrapped average's own weights of this rank's particles (its halo's left out)."""
+        return self.average.own_weight[: self.n]
+
     def state(self) -> dict:
         """The wrapped average's :meth:`~NonlocalAverage.state`, and the halo's under ``"halo"``."""
         state = self.average.state()
