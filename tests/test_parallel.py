@@ -184,6 +184,18 @@ def test_silo_on_all_ranks_equals_the_serial_run(partition, law, quadrature):
         assert parallel[key] == pytest.approx(serial[key], rel=1e-8), key
 
 
+def test_an_inadmissible_over_non_local_mix_stops_every_rank():
+    """A point's own weight m A_ii + 1 - m < 0 on some rank: every rank stops, none waits."""
+    solver, _ = load("demo_silo").build(
+        h=0.025, radius=0.025, weight="wendland", comm=comm, partition="dolfinx", law="overnonlocal", m=5.0
+    )
+    with pytest.raises(
+        dm.SimulationError, match="law 'overnonlocal' with m = 5 has no unique solution"
+    ) as info:
+        solver.step()
+    assert comm.allreduce(int("m must be below 1 / (1 - A_ii)" in str(info.value))) >= 1  # the point named
+
+
 def test_silo_demo_on_all_ranks_records_what_the_serial_run_does(tmp_path):
     run = load("demo_silo").run
     quick = dict(h=0.025, radius=0.02, t_end=0.05, t_settle=0.005, progress=False)
