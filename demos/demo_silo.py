@@ -33,6 +33,7 @@ import inspect
 import itertools
 import json
 import math
+import sys
 import time
 from pathlib import Path
 
@@ -109,8 +110,8 @@ def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, he
         h: cell size [m] (squares of two triangles); must divide the silo's width and height.
         radius: non-local radius r [m]; 0 for the local (viscoplastic) model.
         weight: the averaging weight.
-        law: the non-local law, :data:`dolfin_mpm.averaging.LAWS`; ``m``: the factor of the
-            over-non-local mix (that law's alone).
+        law: the non-local law, :data:`dolfin_mpm.averaging.LAWS`.
+        m: the factor [-] of the over-non-local mix, > 1 (that law's alone; ``None`` for the others).
         volumetric, stress, quadrature: the solver's options against volumetric locking, for
             the stress a particle carries and for how a cell's force is integrated
             (:class:`dolfin_mpm.explicit.options.Options`). The nodal
@@ -567,7 +568,7 @@ STUDIES = {
     # The non-local laws with the positive-definite weight beside the local model.
     "laws": [
         *(dict(h=h, radius=0.0) for h in MESHES),
-        # Not the over-non-local mix: ill-posed in the flowing silo for m > 1.013 (docs/numerics.md).
+        # Not the over-non-local mix: no unique solution above m = 1.013 in the flowing silo (numerics.md).
         *(
             dict(h=h, radius=5e-3, weight="wendland", law=law)
             for law in ("max", "paper", "overstress")
@@ -1189,9 +1190,9 @@ def main():
     parser.add_argument("--force", action="store_true", help="run again the runs that are stored")
     args = parser.parse_args()
     try:
-        dm.NonlocalLaw(args.law, args.m)
+        dm.NonlocalAverage(args.radius, args.weight, law=dm.NonlocalLaw(args.law, args.m))
     except ValueError as e:
-        parser.error(f"--law, --m: {e}")
+        parser.error(f"--radius, --weight, --law, --m: {e}")
     if min(args.split) < 1:
         parser.error(f"--split: KX and KY must be whole numbers >= 1, got {' '.join(map(str, args.split))}")
     if args.study is None and args.report is None:
@@ -1216,7 +1217,10 @@ def main():
         todo = [p for name in (STUDIES if args.study == "all" else [args.study]) for p in STUDIES[name]]
     lo, hi = beverloo()
     for params in todo:
-        r = cached_run(args.output, xdmf=True, force=args.force, **params)
+        try:
+            r = cached_run(args.output, xdmf=True, force=args.force, **params)
+        except dm.SimulationError as e:  # a run that went bad: what it wrote stays, no traceback
+            sys.exit(f"error: {run_key(**params)}: {e}")
         if MPI.COMM_WORLD.rank > 0:
             continue
         key = run_key(**params)

@@ -6,6 +6,7 @@ import functools
 import itertools
 from contextlib import nullcontext
 from pathlib import Path
+from types import SimpleNamespace
 
 import dolfin_mpm as dm
 
@@ -22,6 +23,7 @@ from test_demos import load
 
 from dolfin_mpm.app.cli import main
 from dolfin_mpm.core.locate import locate
+from dolfin_mpm.explicit.step import _check_mix
 from dolfin_mpm.parallel.halo import DistributedAverage
 from dolfin_mpm.parallel.migration import migrate
 from dolfin_mpm.parallel.reduce import max_over_ranks, sum_over_ranks
@@ -190,10 +192,22 @@ def test_an_inadmissible_over_non_local_mix_stops_every_rank():
         h=0.025, radius=0.025, weight="wendland", comm=comm, partition="dolfinx", law="overnonlocal", m=5.0
     )
     with pytest.raises(
-        dm.SimulationError, match="law 'overnonlocal' with m = 5 has no unique solution"
+        dm.SimulationError, match="law 'overnonlocal' with m = 5 may have no unique solution"
     ) as info:
         solver.step()
     assert comm.allreduce(int("m must be below 1 / (1 - A_ii)" in str(info.value))) >= 1  # the point named
+
+
+def test_the_mix_check_names_the_point_on_its_rank_alone():
+    """Only rank 0 holds a point with a negative own weight: every rank stops, rank 0 names it."""
+    own = [0.9, 0.1] if comm.rank == 0 else [0.9]  # A_ii: 2 * 0.1 + 1 - 2 < 0 on rank 0 alone
+    P = SimpleNamespace(id=np.arange(len(own)) + 10 * comm.rank, x=np.zeros((len(own), 3)))
+    state = SimpleNamespace(particles=P, step=7, time=0.1)
+    average = SimpleNamespace(own_weight=np.array(own))
+    with pytest.raises(dm.SimulationError, match=r"step 7, .*m = 2 may have no unique solution") as info:
+        _check_mix(state, dm.NonlocalLaw("overnonlocal", 2.0), average, comm)
+    named = "particle 1 at x" in str(info.value)
+    assert named == (comm.rank == 0) and comm.allreduce(int(named)) == 1
 
 
 def test_silo_demo_on_all_ranks_records_what_the_serial_run_does(tmp_path):

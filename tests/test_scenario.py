@@ -416,6 +416,7 @@ def test_a_bad_output_layout_is_named(value, match):
         (['nonlocal.law="overnonlocal"', "nonlocal.m=1.0"], r"nonlocal\.m: must be > 1, got 1\.0"),
         (['nonlocal.law="overnonlocal"', "nonlocal.m=nan"], r"nonlocal\.m: must be > 1, got nan"),
         (["nonlocal.m=2.0"], r'nonlocal\.m: the factor of law "overnonlocal" alone, got it with law "max"'),
+        (['nonlocal.law="paper"', "nonlocal.m=0.5"], r'nonlocal\.m: the factor of law "overnonlocal" alone'),
     ],
 )
 def test_bad_mix_factors_are_named_with_their_toml_path(overrides, message):

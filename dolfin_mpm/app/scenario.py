@@ -586,13 +586,16 @@ def _nonlocal(c: _Checker, t: dict | None, materials: dict) -> dict:
         "weight": c.value(t, "nonlocal", "weight", "string", "cubic", check=tuple(WEIGHTS)),
         "skin": c.value(t, "nonlocal", "skin", "number", None, check=NonlocalAverage.SKIN),
         "law": c.value(t, "nonlocal", "law", "string", "max", check=LAWS),
-        "m": c.value(t, "nonlocal", "m", "number", None, check=MIX),
+        "m": None,
         "boundary_correction": c.value(t, "nonlocal", "boundary_correction", "bool", False),
     }
-    if n["law"] == "overnonlocal" and "m" not in t:
-        c.fail("nonlocal.m", f'missing: law "overnonlocal" needs its factor m ({MIX.describe()})')
-    elif n["law"] not in ("overnonlocal", None) and n["m"] is not None:
-        c.fail("nonlocal.m", f'the factor of law "overnonlocal" alone, got it with law "{n["law"]}"')
+    law = t.get("law", "max")  # m is checked against a valid law only
+    if "m" in t and law in LAWS and law != "overnonlocal":
+        c.fail("nonlocal.m", f'the factor of law "overnonlocal" alone, got it with law "{law}"')
+    else:
+        n["m"] = c.value(t, "nonlocal", "m", "number", None, check=MIX)
+        if law == "overnonlocal" and "m" not in t:
+            c.fail("nonlocal.m", f'missing: law "overnonlocal" needs its factor m ({MIX.describe()})')
     if n["law"] not in ("max", None) and n["weight"] not in ("wendland", None):
         c.fail(
             "nonlocal.law",

@@ -90,7 +90,9 @@ def solve_rates(
     """The rates ``u`` and applied increments ``d = A u`` of the paper's law, all ``shape=(n,)``.
 
     Args:
-        average: the non-local average ``A`` (a callable on particle fields).
+        average: the operator the increments take from the rates, ``d = A u`` (a callable on
+            particle fields): the non-local average, or the over-non-local mix
+            ``m A + (1 - m) I`` (:meth:`~dolfin_mpm.averaging.law.NonlocalLaw.applied`).
         increment_of_rate: ``u -> (delta(u), slope)``, the increment whose end state has the
             rate ``u`` and ``-d delta / d u >= 0``, both [-].
         u0: the first guess (the last iterate's or the last step's rates).

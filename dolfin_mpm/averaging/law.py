@@ -23,20 +23,22 @@ in how it acts:
   law (which is ``m = 1``). The complementarity problem is the paper's with ``B = m A +
   (1 - m) I`` in place of ``A``. ``B`` is a non-negative matrix, and so ``d >= 0``, only while
   every point's own weight ``m A_ii + 1 - m`` is positive, that is ``m < 1 / (1 - A_ii)``;
-  beyond it a point's own rate lowers its own increment, and where the average of its
-  neighbours cannot bring a point to its cone the law has no solution (the residual of its row
-  falls as its rate grows). ``A_ii``, a point's own share of its average, falls as r spans more
-  points, so the admissible ``m`` tends to 1 as the mesh is refined at fixed r: without a
-  softening variable to carry it, the mix cannot stay over-non-local on fine meshes. The step
-  stops, naming the point, when ``m`` is beyond the bound.
+  beyond it a point's own rate lowers its own increment, and at the apex or near a free
+  surface (where the viscous slope ``1 / a`` of its row vanishes) a point that its neighbours
+  cannot bring to its cone has no rate that solves its row. ``A_ii``, a point's own share of
+  its average, falls as r spans more points, so the admissible ``m`` tends to 1 as the mesh is
+  refined at fixed r; one solution for every trial state needs ``m < 1 / (1 - lambda_min(A))``,
+  tighter still, and falling as the flow disorders the points. The step stops, naming the
+  point, where the own weight is not positive.
 
 The last three couple every point to its neighbours through its end state, and each iterate of
 the step's loop solves them by a Newton method (semismooth, projected) with the trial states
 fixed; the loop then iterates the internal forces alone. The paper's law and the mix are
 complementarity problems in the rates (:mod:`dolfin_mpm.averaging.complementarity`); the
-overstress law is solved in the end states' overstress (:mod:`dolfin_mpm.averaging.overstress`). All need a
-positive-definite weight: with it ``A`` is a P-matrix, the paper's law has one solution and the
-overstress law's Newton systems are invertible. Wendland's weight is (the least eigenvalue of
+overstress law is solved in the end states' overstress
+(:mod:`dolfin_mpm.averaging.overstress`). All take a positive-definite weight: with it ``A`` is
+a P-matrix, the paper's law has one solution and the overstress law's Newton systems are
+invertible (for the mix it is necessary, not enough: see above). Wendland's weight is (the least eigenvalue of
 the average on a lattice of spacing r/2 is +0.20; cubic -0.04, Gaussian -0.03, constant -0.33),
 and the laws take it alone
 (:data:`dolfin_mpm.averaging.nonlocal_average.WEIGHTS`).
@@ -54,6 +56,7 @@ overstress law on h = 1 mm (``docs/numerics.md``).
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from numbers import Real
 
 import numpy as np
 
@@ -87,7 +90,10 @@ class NonlocalLaw:
         if self.name == "overnonlocal":
             if self.m is None:
                 raise ValueError(f"law 'overnonlocal' needs its factor m, which {MIX.describe()}")
+            if not isinstance(self.m, Real) or isinstance(self.m, bool):
+                raise ValueError(f"m must be a number, which {MIX.describe()}, got {self.m!r}")
             MIX.check("m", self.m)
+            object.__setattr__(self, "m", float(self.m))
         elif self.m is not None:
             raise ValueError(f"m is the factor of law 'overnonlocal', not of {self.name!r}, got {self.m!r}")
 

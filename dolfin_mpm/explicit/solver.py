@@ -86,11 +86,11 @@ class Solver:
             raise ValueError(f"particles.material must index the {len(materials)} materials")
         particles.ensure_state({k: v for m in materials for k, v in m.state_fields().items()})
         if averaging is not None and averaging.law.iterative:
-            needs, what = {
-                "overstress": ("perzyna", "a Perzyna law of finite viscosity"),
-                "paper": ("increment_of_rate", "the increment of a given rate (a viscous law)"),
-                "overnonlocal": ("increment_of_rate", "the increment of a given rate (a viscous law)"),
-            }[averaging.law.name]
+            needs, what = (
+                ("increment_of_rate", "the increment of a given rate (a viscous law)")
+                if averaging.law.rates
+                else ("perzyna", "a Perzyna law of finite viscosity")
+            )
             lacking = [type(m).__name__ for m in materials if m.plastic and not hasattr(m, needs)]
             if needs == "perzyna":  # the rate-independent limit has no overstress to average
                 lacking += [f"{type(m).__name__} with gamma = inf" for m in materials

@@ -391,8 +391,8 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         converged = False
         if law.iterative:  # from the last step's end: the paper's rates, the overstress increments
             guess = P.state[CORRECTION].copy()
-    paper = law is not None and law.rates  # the paper's law or the over-non-local mix
-    if paper:
+    rates = law is not None and law.rates  # the paper's law or the over-non-local mix
+    if rates:
         applied_of = law.applied(average)  # d = A u, or the mix m A u + (1 - m) u
         _check_mix(state, law, average, comm)
     overstress = law is not None and law.name == "overstress"
@@ -405,7 +405,7 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         v, v_grid, L, v_node = g2p(model, P, basis, nodal, v_node, a_node, dt, lumped)
         timer.lap("g2p")
         trials = constitutive.trials(P, L, dt)
-        if paper:  # the rates by semismooth Newton, from the last iterate's (or step's)
+        if rates:  # the rates by semismooth Newton, from the last iterate's (or step's)
             u_trial = constitutive.gather(P, [t.q for t in trials]) / two_G  # q_trial / 2G
             timer.lap("return_mapping")
             size = math.sqrt(sum_over_ranks(comm, u_trial @ u_trial))
@@ -560,8 +560,8 @@ def _check_mix(state: State, law, average, comm: MPI.Comm) -> None:
     else:
         where, bound = "a particle of another rank", "see that rank's message"
     raise SimulationError(
-        f"step {state.step}, t = {state.time:.6g} s: law 'overnonlocal' with m = {law.m:g} has no unique "
-        f"solution where a point's own rate lowers its own increment: {where}; {bound} "
+        f"step {state.step}, t = {state.time:.6g} s: law 'overnonlocal' with m = {law.m:g} may have no "
+        f"unique solution where a point's own rate lowers its own increment: {where}; {bound} "
         "(dolfin_mpm.averaging.law)"
     )
 
