@@ -38,9 +38,9 @@ complementarity problems in the rates (:mod:`dolfin_mpm.averaging.complementarit
 overstress law is solved in the end states' overstress
 (:mod:`dolfin_mpm.averaging.overstress`). All take a positive-definite weight: with it ``A`` is
 a P-matrix, the paper's law has one solution and the overstress law's Newton systems are
-invertible (for the mix it is necessary, not enough: see above). Wendland's weight is (the least eigenvalue of
-the average on a lattice of spacing r/2 is +0.20; cubic -0.04, Gaussian -0.03, constant -0.33),
-and the laws take it alone
+invertible (for the mix it is necessary, not enough: see above). Wendland's weight is (the
+least eigenvalue of the average on a lattice of spacing r/2 is +0.20; cubic -0.04, Gaussian
+-0.03, constant -0.33), and the laws take it alone
 (:data:`dolfin_mpm.averaging.nonlocal_average.WEIGHTS`).
 
 The paper's and the overstress law were first iterated as a correction of the trial ``q``
