@@ -568,7 +568,7 @@ STUDIES = {
     # The non-local laws with the positive-definite weight beside the local model.
     "laws": [
         *(dict(h=h, radius=0.0) for h in MESHES),
-        # Not the over-non-local mix: no unique solution above m = 1.013 in the flowing silo (numerics.md).
+        # Not the over-non-local mix: sure of one solution only below m = 1.01-1.05 (numerics.md).
         *(
             dict(h=h, radius=5e-3, weight="wendland", law=law)
             for law in ("max", "paper", "overstress")
