@@ -14,9 +14,9 @@ Time t = 0 is the opening.
 Each run is stored in the results folder (JSON of the numbers, NPZ of the particles at the
 map time), so studies are resumed rather than repeated:
 
-    python demos/demo_silo.py                      # one run, h = 10 mm, r = 5 mm (~40 s)
+    python demos/demo_silo.py                      # one run, h = 10 mm, r = 5 mm (~10 s)
     python demos/demo_silo.py --study meshes       # h = 10, 5, 2.5 mm, local and non-local; 1.25 non-local
-    python demos/demo_silo.py --study radius       # r = 0, 2.5, 5, 10 mm on h = 5 and 2.5 mm
+    python demos/demo_silo.py --study radius       # r = 0, 2.5, 5, 10 mm on h = 10, 5 and 2.5 mm
     python demos/demo_silo.py --study weights      # cubic, constant, Gaussian at r = 5 mm
     python demos/demo_silo.py --study numerics     # the volumetric rate, the stress, the quadrature
     python demos/demo_silo.py --split 2 1          # cells halved across the flow only (--study split)
@@ -244,6 +244,7 @@ class Monitor:
         self.sums = np.zeros((3, len(self.edges) - 1))  # count, e_vp_bar, v_y
         self.band_sums = {name: np.zeros((2, len(self.edges) - 1)) for name in BAND_HEIGHTS}  # count, speed
         self.flux_sums, self.flux_records = np.zeros(len(self.edges) - 1), 0  # momentum down, records
+        self.free_sums = np.zeros((2, len(self.edges) - 1))  # points, points at p = 0, in the same strip
 
     def write(self, solver):
         if self.output is not None and len(self.t) % self.xdmf_every == 0:
@@ -264,6 +265,8 @@ class Monitor:
             strip = np.abs(P.x[:, 1]) < 0.5 * self.h
             self.flux_sums += bin_sums(P.x[strip, 0], self.edges, -P.mass[strip] * P.v[strip, 1])[1]
             self.flux_records += 1
+            free = np.einsum("pii->p", P.sigma[strip]) >= 0.0  # p = 0: the cone's apex, stress free
+            self.free_sums += bin_sums(P.x[strip, 0], self.edges, free.astype(np.float64))
 
     def profiles(self, comm):
         """Bin centres [m] and the time-averaged e_vp_bar [1/s] and v_y [m/s] in each bin."""
@@ -279,6 +282,11 @@ class Monitor:
         """
         total = comm.allreduce(self.flux_sums, MPI.SUM)
         return self.centres, total / max(self.flux_records, 1) / (self.h * np.diff(self.edges))
+
+    def outlet_points(self, comm):
+        """Bin centres [m], and the outlet strip's point records and those at p = 0 in each bin."""
+        count, free = comm.allreduce(self.free_sums, MPI.SUM)
+        return self.centres, count, free
 
     def band_profiles(self, comm) -> dict:
         """The time-averaged speed [m/s] across each band's height: ``{name: (x, speed)}``."""
@@ -384,6 +392,9 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, heig
         **{f"profile_speed_{name}": np.array(xs) for name, xs in bands.items()},  # (x, speed)
         "profile_flux": np.array([x_f, flux]),
         "outlet_shares": outlet_shares(x_f, flux, 0.5 * (width - outlet), 0.5 * (width + outlet)),
+        "outlet_stress_free": outlet_stress_free(
+            *monitor.outlet_points(comm), 0.5 * (width - outlet), 0.5 * (width + outlet)
+        ),
         **velocity_bands(bands, width),
         "y_c": y_c,
         "x": gather(P.x[:, :2]),  # the particles at t_end
@@ -514,6 +525,21 @@ def outlet_shares(x, flux, x0, x1) -> list[float]:
     return [float(flux[(d >= lo) & (d < hi)].sum() * dx) for lo, hi in itertools.pairwise(OUTLET_BANDS)]
 
 
+def outlet_stress_free(x, count, free, x0, x1) -> list[float | None]:
+    """The share of the outlet strip's points at p = 0 (stress free) in each band of the outlet
+    ``[x0, x1]`` [m] by distance from its nearer edge (:data:`OUTLET_BANDS`), from the bins'
+    point records ``count`` and stress-free records ``free`` at their centres ``x`` [m]; ``None``
+    where no point passed.
+    """
+    d = np.minimum(x - x0, x1 - x)  # < 0: over a plate
+    shares: list[float | None] = []
+    for lo, hi in itertools.pairwise(OUTLET_BANDS):
+        band = (d >= lo) & (d < hi)
+        n = count[band].sum()
+        shares.append(float(free[band].sum() / n) if n > 0 else None)
+    return shares
+
+
 def outlet_band_names() -> list[str]:
     """The names of the bands of :data:`OUTLET_BANDS`: ``"0-1 cm"``, ..., ``"beyond 3 cm"``."""
     bands = [f"{1e2 * lo:g}-{1e2 * hi:g} cm" for lo, hi in itertools.pairwise(OUTLET_BANDS[:-1])]
@@ -542,7 +568,7 @@ STUDIES = {
         *(dict(h=h, radius=r) for r in (0.0, 5e-3) for h in (0.01, 0.005, 0.0025)),
         dict(h=0.00125, radius=5e-3),  # 70 min on two ranks
     ],
-    "radius": [dict(h=h, radius=r) for h in (H_STUDY, 0.0025) for r in (0.0, 2.5e-3, 5e-3, 10e-3)],
+    "radius": [dict(h=h, radius=r) for h in MESHES for r in (0.0, 2.5e-3, 5e-3, 10e-3)],
     "weights": [dict(h=H_STUDY, radius=5e-3, weight=w) for w in ("cubic", "constant", "gaussian")],
     "friction": [dict(h=0.01, wall_friction=a) for a in (0.0, 10.0, 20.0, 30.0)],
     "shift": [dict(h=h, radius=0.0, shift=s) for h in (0.01, 0.005) for s in (0.0, 0.5)],
@@ -1239,6 +1265,14 @@ def main():
                 "  through the outlet by distance from its edges: "
                 + ", ".join(f"{b} {q:.1f}" for b, q in zip(bands, r["outlet_shares"]))
                 + f" kg/s/m (sum {sum(r['outlet_shares']):.1f})"
+            )
+        if "outlet_stress_free" in r:  # stored runs made before it have none
+            print(
+                "  stress free (p = 0) there: "
+                + ", ".join(
+                    f"{b} {'-' if f is None else f'{100 * f:.0f} %'}"
+                    for b, f in zip(outlet_band_names(), r["outlet_stress_free"])
+                )
             )
     if args.report is not None and MPI.COMM_WORLD.rank == 0:
         report(args.output, args.report)

@@ -82,6 +82,10 @@ def test_silo_quick_discharge(tmp_path):
     # The flux through the outlet plane passes the opening, not the plates.
     x, flux = r["profile_flux"]
     assert sum(r["outlet_shares"]) > 0.0 and np.all(np.abs(flux[x < 0.04]) < 0.1 * flux.max())
+    # A share of the points passing the outlet at the apex, stress free (bins of half a cell: on
+    # this coarse mesh no bin's centre falls 2-3 cm from an edge, that band has no value).
+    free = r["outlet_stress_free"]
+    assert len(free) == 4 and free[2] is None and all(0.0 <= f <= 1.0 for f in free if f is not None)
 
 
 def test_silo_outlet_shares_split_the_flux_by_distance_from_the_edges():
@@ -91,6 +95,17 @@ def test_silo_outlet_shares_split_the_flux_by_distance_from_the_edges():
     F = 1500.0
     flux = np.where((x > 0.05) & (x < 0.15), F, 7.0)  # 7: over the plates, not counted
     assert np.allclose(demo.outlet_shares(x, flux, 0.05, 0.15), [0.02 * F, 0.02 * F, 0.02 * F, 0.04 * F])
+
+
+def test_silo_outlet_stress_free_shares_by_distance_from_the_edges():
+    """Points at p = 0 counted in the bands of the outlet; bins over the plates are not counted."""
+    demo = load("demo_silo")
+    x = np.arange(0.0025, 0.2, 0.005)
+    d = np.minimum(x - 0.05, 0.15 - x)
+    count = np.where(d < 0.0, 9.0, 4.0)
+    free = np.select([d < 0.0, d < 0.01, d < 0.02], [9.0, 3.0, 1.0], 0.0)  # 0-1 cm: 3 of 4, 1-2 cm: 1 of 4
+    assert demo.outlet_stress_free(x, count, free, 0.05, 0.15) == [0.75, 0.25, 0.0, 0.0]
+    assert demo.outlet_stress_free(x, 0.0 * count, free, 0.05, 0.15) == [None] * 4  # no point passed
 
 
 def test_silo_quick_paper_law_and_its_report(tmp_path):
@@ -164,9 +179,9 @@ def test_silo_cells_split_across_or_up():
     assert table[3] == "| r = 5 mm | 10 x 10 | - | - | - | - | 9.0 |"
 
 
-def test_silo_radius_study_on_two_meshes(tmp_path):
+def test_silo_radius_study_on_three_meshes(tmp_path):
     demo = load("demo_silo")
-    assert sorted({p["h"] for p in demo.STUDIES["radius"]}) == [0.0025, 0.005]
+    assert sorted({p["h"] for p in demo.STUDIES["radius"]}) == [0.0025, 0.005, 0.01]
     runs = [dict(h=h, radius=r, flow_rate=150.0 - 1e3 * r) for h in (0.005, 0.0025) for r in (0.0, 0.005)]
     demo.plot_radius(runs, tmp_path / "radius.png")
     assert (tmp_path / "radius.png").stat().st_size > 0
