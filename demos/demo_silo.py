@@ -232,8 +232,8 @@ class Monitor:
     (:meth:`~dolfin_mpm.Solver.imbalance`); every ``xdmf_every``-th call the
     XDMF output; from ``t_profile`` on, the profiles of e_vp_bar and v_y across the silo at
     the height ``y_c`` and of the speed at :data:`BAND_HEIGHTS`; from :data:`T_STEADY` on, the
-    mass flux down through the outlet plane (strips of one cell, bins of half a cell), summed
-    for time averages.
+    mass flux down through the outlet plane (strips of one cell, bins of half a cell) and the
+    count of its points at p = 0, summed for time averages.
     """
 
     def __init__(self, output, h, width, y_c, t_profile, xdmf_every=5):
@@ -331,7 +331,8 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, heig
         time-averaged profiles across the silo at
         the height ``y_c`` over the last fifth of the run, the time-averaged flux through the
         outlet plane (``profile_flux``, bin centres and flux density) and its ``outlet_shares``
-        by distance from the edges (:func:`outlet_shares`), and the run's statistics.
+        by distance from the edges (:func:`outlet_shares`) with the share of the points passing
+        there stress free (:func:`outlet_stress_free`), and the run's statistics.
 
     """
     for name, value in (("t_end", t_end), ("interval", interval)):
@@ -521,8 +522,7 @@ def outlet_shares(x, flux, x0, x1) -> list[float]:
     centres ``x`` [m] (equal bins): where across the opening the material passes.
     """
     dx = x[1] - x[0]
-    d = np.minimum(x - x0, x1 - x)  # < 0: over a plate
-    return [float(flux[(d >= lo) & (d < hi)].sum() * dx) for lo, hi in itertools.pairwise(OUTLET_BANDS)]
+    return [float(flux[band].sum() * dx) for band in outlet_bands(x, x0, x1)]
 
 
 def outlet_stress_free(x, count, free, x0, x1) -> list[float | None]:
@@ -531,13 +531,18 @@ def outlet_stress_free(x, count, free, x0, x1) -> list[float | None]:
     point records ``count`` and stress-free records ``free`` at their centres ``x`` [m]; ``None``
     where no point passed.
     """
-    d = np.minimum(x - x0, x1 - x)  # < 0: over a plate
     shares: list[float | None] = []
-    for lo, hi in itertools.pairwise(OUTLET_BANDS):
-        band = (d >= lo) & (d < hi)
+    for band in outlet_bands(x, x0, x1):
         n = count[band].sum()
         shares.append(float(free[band].sum() / n) if n > 0 else None)
     return shares
+
+
+def outlet_bands(x, x0, x1) -> list[np.ndarray]:
+    """Masks of the points ``x`` [m] in each band of the outlet ``[x0, x1]`` [m] by distance from
+    its nearer edge (:data:`OUTLET_BANDS`); those over the plates are in none."""
+    d = np.minimum(x - x0, x1 - x)  # < 0: over a plate
+    return [(d >= lo) & (d < hi) for lo, hi in itertools.pairwise(OUTLET_BANDS)]
 
 
 def outlet_band_names() -> list[str]:
