@@ -1264,8 +1264,8 @@ def main():
             f"max e_vp_bar {r['e_vp_bar_max']:.1f} 1/s, {r['particles']} particles, {r['steps']} steps, "
             f"{r['seconds']:.0f} s{ranks(r)}, {r['mean_iterations']:.2f} iterations per step"
         )
+        bands = outlet_band_names()
         if "outlet_shares" in r:  # stored runs made before it have none
-            bands = outlet_band_names()
             print(
                 "  through the outlet by distance from its edges: "
                 + ", ".join(f"{b} {q:.1f}" for b, q in zip(bands, r["outlet_shares"]))
@@ -1276,7 +1276,7 @@ def main():
                 "  stress free (p = 0) there: "
                 + ", ".join(
                     f"{b} {'-' if f is None else f'{100 * f:.0f} %'}"
-                    for b, f in zip(outlet_band_names(), r["outlet_stress_free"])
+                    for b, f in zip(bands, r["outlet_stress_free"])
                 )
             )
     if args.report is not None and MPI.COMM_WORLD.rank == 0:
