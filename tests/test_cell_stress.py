@@ -65,13 +65,20 @@ def test_the_means_keep_materials_apart_and_leave_the_kept_points_out():
                 assert np.allclose(mean[group], np.einsum("p,pij->ij", w, sigma[group]) / w.sum(), atol=1e-9)
 
 
-def test_the_means_in_place_are_the_new_arrays_means_bit_for_bit():
-    """In place (the step's use) the kept points keep their stress; the others take the means."""
+@pytest.mark.parametrize("plane_strain", [False, True])
+def test_the_means_in_place_are_the_new_arrays_means_bit_for_bit(plane_strain):
+    """In place (the step's use) the kept points keep their stress; the others take the means.
+
+    In plane strain the out-of-plane shears are zero at every point: in place they are left as
+    they are, and stay zero.
+    """
     from dolfin_mpm.materials.tensor import component_first, particle_first
 
     rng = np.random.default_rng(5)
     n, num_cells = 300, 40
     sigma = _noisy(n, rng, 3)
+    if plane_strain:
+        sigma[:, 0, 2] = sigma[:, 2, 0] = sigma[:, 1, 2] = sigma[:, 2, 1] = 0.0
     volume, cells = rng.uniform(0.5, 1.5, n), np.sort(rng.integers(0, num_cells, n))
     material = rng.integers(0, 2, n).astype(np.int32)
     kept = rng.random(n) < 0.2

@@ -114,7 +114,11 @@ def test_scatters_add_each_nodes_terms_in_particle_order(gdim):
     assert np.array_equal(m, want_m) and np.array_equal(momentum, want_p)
     assert np.array_equal(force, one_at_a_time(f))
     a_node = rng.normal(size=(grid.num_nodes, gdim))
-    v_new, _, momenta = grid_to_particles(basis, a_node, a_node, v, 1e-3, 0.5, mass)
+    v_node = rng.normal(size=(grid.num_nodes, gdim))
+    v_interp = interpolate(basis, v_node)
+    v_new, dx, momenta = grid_to_particles(basis, v_node, a_node, v, 1e-3, 0.5, mass)
+    assert np.array_equal(v_new, 0.5 * (v + 1e-3 * interpolate(basis, a_node)) + 0.5 * v_interp)
+    assert np.array_equal(dx, 1e-3 * v_interp)
     assert np.array_equal(momenta, one_at_a_time(N * (mass[:, None] * v_new)[:, None]))
 
 

@@ -5,7 +5,8 @@
  * zeroed scratch. A run of particles of one group (they come in runs where they are ordered
  * by cell) sums in registers: the sums and their order are those of one term at a time. Each
  * group's sums become its mean with one division a component, before the pass that writes them.
- * out may be sigma itself. */
+ * out may be sigma itself; then a component that is zero at every point (the out-of-plane shears
+ * of plane strain) is left as it is, its means being zero too. */
 #include <stdint.h>
 #include <string.h>
 
@@ -27,6 +28,7 @@ void cell_mean(int64_t n, int64_t num_cells, int32_t groups, const int32_t *rest
   for (int c = 0; c < 6; ++c)
     S[c] = sigma + (3 * UPPER[c][0] + UPPER[c][1]) * n;
   int64_t p = 0;
+  int nonzero[6] = {0, 0, 0, 0, 0, 0}; /* whether any point has the component */
   while (p < n)
   {
     const int64_t k = group_of(p, groups, cell, material);
@@ -37,7 +39,10 @@ void cell_mean(int64_t n, int64_t num_cells, int32_t groups, const int32_t *rest
     {
       t += w[p];
       for (int c = 0; c < 6; ++c)
+      {
         s[c] += w[p] * S[c][p];
+        nonzero[c] |= S[c][p] != 0.0;
+      }
     }
     total[k] = t;
     for (int c = 0; c < 6; ++c)
@@ -68,6 +73,8 @@ void cell_mean(int64_t n, int64_t num_cells, int32_t groups, const int32_t *rest
       at[q] = w[q0 + q] > 0.0 ? 6 * group_of(q0 + q, groups, cell, material) : -1;
     for (int c = 0; c < 6; ++c)
     {
+      if (!nonzero[c] && out == sigma) /* zero at every point, and so its means: already written */
+        continue;
       const int a = UPPER[c][0], b = UPPER[c][1];
       double *lower = out + (3 * b + a) * n + q0, *upper = out + (3 * a + b) * n + q0;
       const double *own = S[c] + q0; /* the upper triangle: read before it is written, when out is sigma */

@@ -152,51 +152,56 @@ INLINE void gradient_of(int64_t n, int32_t gdim, const int32_t *restrict dofs, c
   }
 }
 
-/* v_interp[p] = sum_a N[a, p] v_node[dofs[a, p]] and the new particle velocity v[p]: v_p + dt
- * sum_a N a_node (flip = 1), flip (v_p + dt sum_a N a_node) + (1 - flip) v_interp (0 < flip < 1)
- * or v_interp (flip = 0); all (n, gdim) or (num_nodes, gdim). With musl, also the nodal sums of
- * the momenta m_p v[p] into momenta (num_nodes, gdim), which holds the sums on entry. The
- * terms and their order are those of interpolate and scatter. */
+/* dx[p] = dt sum_a N[a, p] v_node[dofs[a, p]], the particle's displacement with the grid's
+ * velocity, and the new particle velocity v[p]: v_p + dt sum_a N a_node (flip = 1),
+ * flip (v_p + dt sum_a N a_node) + (1 - flip) sum_a N v_node (0 < flip < 1) or sum_a N v_node
+ * (flip = 0); all (n, gdim) or (num_nodes, gdim). With musl, also the nodal sums of the momenta
+ * m_p v[p] into momenta (num_nodes, gdim), which holds the sums on entry. One pass: a run of
+ * particles of one cell reads its nodes' values and sums its momenta in registers. The terms
+ * and their order are those of interpolate and scatter. */
 INLINE void g2p_of(int64_t n, int32_t gdim, const int32_t *restrict dofs, const double *restrict N,
                    const double *restrict v_node, const double *restrict a_node, const double *restrict v_p,
                    double dt, double flip, int32_t musl, const double *restrict mass, double *restrict v,
-                   double *restrict v_interp, double *restrict momenta)
+                   double *restrict dx, double *restrict momenta)
 {
   const int32_t nn = gdim + 1;
-  for (int64_t p = 0; p < n; ++p)
-    for (int32_t c = 0; c < gdim; ++c)
-    {
-      double vi = 0.0, ai = 0.0;
-      for (int32_t a = 0; a < nn; ++a)
-        vi += N[a * n + p] * v_node[(int64_t)dofs[a * n + p] * gdim + c];
-      v_interp[p * gdim + c] = vi;
-      if (flip > 0.0)
-        for (int32_t a = 0; a < nn; ++a)
-          ai += N[a * n + p] * a_node[(int64_t)dofs[a * n + p] * gdim + c];
-      if (flip == 1.0)
-        v[p * gdim + c] = v_p[p * gdim + c] + dt * ai;
-      else if (flip > 0.0)
-        v[p * gdim + c] = flip * (v_p[p * gdim + c] + dt * ai) + (1.0 - flip) * vi;
-      else
-        v[p * gdim + c] = vi;
-    }
-  if (!musl)
-    return;
   int64_t p = 0, d[MAX_NODES];
-  double o[MAX_NODES][3];
+  double vn[MAX_NODES][3], an[MAX_NODES][3], o[MAX_NODES][3];
   while (p < n)
   {
     cell_of(n, nn, dofs, p, d);
     for (int32_t a = 0; a < nn; ++a)
       for (int32_t c = 0; c < gdim; ++c)
-        o[a][c] = momenta[d[a] * gdim + c];
+      {
+        vn[a][c] = v_node[d[a] * gdim + c];
+        an[a][c] = flip > 0.0 ? a_node[d[a] * gdim + c] : 0.0;
+        o[a][c] = musl ? momenta[d[a] * gdim + c] : 0.0;
+      }
     for (; p < n && same_cell(n, nn, dofs, p, d); ++p)
+      for (int32_t c = 0; c < gdim; ++c)
+      {
+        double vi = 0.0, ai = 0.0, vc;
+        for (int32_t a = 0; a < nn; ++a)
+          vi += N[a * n + p] * vn[a][c];
+        dx[p * gdim + c] = dt * vi;
+        if (flip > 0.0)
+          for (int32_t a = 0; a < nn; ++a)
+            ai += N[a * n + p] * an[a][c];
+        if (flip == 1.0)
+          vc = v_p[p * gdim + c] + dt * ai;
+        else if (flip > 0.0)
+          vc = flip * (v_p[p * gdim + c] + dt * ai) + (1.0 - flip) * vi;
+        else
+          vc = vi;
+        v[p * gdim + c] = vc;
+        if (musl)
+          for (int32_t a = 0; a < nn; ++a)
+            o[a][c] += N[a * n + p] * (mass[p] * vc);
+      }
+    if (musl)
       for (int32_t a = 0; a < nn; ++a)
         for (int32_t c = 0; c < gdim; ++c)
-          o[a][c] += N[a * n + p] * (mass[p] * v[p * gdim + c]);
-    for (int32_t a = 0; a < nn; ++a)
-      for (int32_t c = 0; c < gdim; ++c)
-        momenta[d[a] * gdim + c] = o[a][c];
+          momenta[d[a] * gdim + c] = o[a][c];
   }
 }
 
@@ -307,13 +312,13 @@ void volume_ratio(int64_t n, int32_t gdim, const double *restrict L, double dt, 
 }
 
 void g2p(int64_t n, int32_t gdim, const int32_t *dofs, const double *N, const double *v_node, const double *a_node,
-         const double *v_p, double dt, double flip, int32_t musl, const double *mass, double *v, double *v_interp,
+         const double *v_p, double dt, double flip, int32_t musl, const double *mass, double *v, double *dx,
          double *momenta)
 {
   if (gdim == 2)
-    g2p_of(n, 2, dofs, N, v_node, a_node, v_p, dt, flip, musl, mass, v, v_interp, momenta);
+    g2p_of(n, 2, dofs, N, v_node, a_node, v_p, dt, flip, musl, mass, v, dx, momenta);
   else
-    g2p_of(n, 3, dofs, N, v_node, a_node, v_p, dt, flip, musl, mass, v, v_interp, momenta);
+    g2p_of(n, 3, dofs, N, v_node, a_node, v_p, dt, flip, musl, mass, v, dx, momenta);
 }
 
 void p2g(int64_t n, int32_t gdim, const int32_t *dofs, const double *N, const int32_t *cells, const double *grad,

@@ -128,7 +128,7 @@ def grid_to_particles(
     flip: float,
     mass: np.ndarray | None = None,
 ) -> tuple[np.ndarray, ...]:
-    """New particle velocities from the grid, in one pass over the particles.
+    """New particle velocities and displacements from the grid, in one pass over the particles.
 
     Args:
         v_node, a_node: nodal velocities [m/s] and accelerations [m/s^2], ``shape=(num_nodes, gdim)``.
@@ -139,19 +139,19 @@ def grid_to_particles(
             momenta (MUSL's re-map), or ``None``.
 
     Returns:
-        ``v`` and the grid velocity at the particles ``v_grid``, ``shape=(n, gdim)``, and the
-        nodal momenta ``shape=(num_nodes, gdim)`` (or ``None``).
+        ``v`` and the displacement ``dt v_grid`` with the grid velocity at the particles,
+        ``shape=(n, gdim)``, and the nodal momenta ``shape=(num_nodes, gdim)`` (or ``None``).
 
     """
     n, gdim = v_p.shape
-    v, v_grid = np.empty((n, gdim)), np.empty((n, gdim))
+    v, dx = np.empty((n, gdim)), np.empty((n, gdim))
     musl = mass is not None
     momenta = np.zeros((basis.num_nodes, gdim)) if musl else _UNUSED
     _kernels().g2p(
         n, gdim, basis.dofs, basis.N, _as_real(v_node), _as_real(a_node), _as_real(v_p), dt, flip, int(musl),
-        _as_real(mass) if musl else _UNUSED, v, v_grid, momenta,
+        _as_real(mass) if musl else _UNUSED, v, dx, momenta,
     )  # fmt: skip
-    return v, v_grid, momenta if musl else None
+    return v, dx, momenta if musl else None
 
 
 def interpolate(basis: Basis, nodal: np.ndarray) -> np.ndarray:

@@ -206,13 +206,13 @@ def g2p(
     :func:`~dolfin_mpm.core.volumetric.nodal_volume`, the weights of the nodal volumetric rate.
 
     Returns:
-        The new particle velocities (PIC/FLIP blend) and the grid velocity at the particles that
-        moves them, both ``shape=(n, gdim)``; the velocity gradient ``shape=(n, gdim, gdim)``;
+        The new particle velocities (PIC/FLIP blend) and the displacements ``dt v_grid`` that
+        move them, both ``shape=(n, gdim)``; the velocity gradient ``shape=(n, gdim, gdim)``;
         and the nodal velocity it came from, ``shape=(num_nodes, gdim)``.
 
     """
     grid, musl = model.grid, model.options.scheme == "MUSL"
-    v, v_interp, momenta = grid_to_particles(
+    v, dx, momenta = grid_to_particles(
         basis, v_node, a_node, P.v, dt, model.options.flip, P.mass if musl else None
     )
     if musl:
@@ -221,7 +221,7 @@ def g2p(
     L = gradient(basis, v_node)
     if model.options.volumetric == "nodal":
         L = nodal_volumetric(grid, basis, L, P.volume, lumped)
-    return v, v_interp, L, v_node
+    return v, dx, L, v_node
 
 
 class Constitutive:
@@ -402,7 +402,7 @@ def advance(model: Model, state: State, timer: Timer) -> None:
     for k in range(1, (1 if average is None else options.fixed_point_max_iter) + 1):
         v_node, a_node, f_contact, reactions = nodal_solve(model, nodal, R_node, dt)
         timer.lap("nodal_solve")
-        v, v_grid, L, v_node = g2p(model, P, basis, nodal, v_node, a_node, dt, lumped)
+        v, dx, L, v_node = g2p(model, P, basis, nodal, v_node, a_node, dt, lumped)
         timer.lap("g2p")
         trials = constitutive.trials(P, L, dt)
         if rates:  # the rates by semismooth Newton, from the last iterate's (or step's)
@@ -480,7 +480,6 @@ def advance(model: Model, state: State, timer: Timer) -> None:
     constitutive.record(P, de, de_bar, dt, applied)
     if free_volume is not None:
         P.state["free_volume"] = free_volume
-    dx = dt * v_grid
     state.wall_stops += stop_at_walls(model.bcs, P.x, dx, v, state.time, dt)
     P.v = v
     for c in range(grid.gdim):  # by columns: numpy is slow over short rows
