@@ -19,7 +19,10 @@ capacity q_u = N_c c:
 The mesh is graded towards the footing edge, where the stresses are singular.
 
     python demos/demo_footing.py [--soil cohesive|frictional|frictional-associated] [--quick]
-        [--output results/footing]
+        [--study] [--output results/footing]
+
+``--study`` runs the MPM alone on cells of 10, 5 and 2.5 cm with 1 and 4 points per triangle
+and each stress option, and prints the collapse loads as a table.
 """
 
 import argparse
@@ -43,6 +46,10 @@ C, E, NU = 100e3, 100e6, 0.3  # cohesion [Pa], soil stiffness
 PHI = 30.0  # friction angle of the frictional soil [deg]
 SOILS = ("cohesive", "frictional", "frictional-associated")
 SETTLEMENT = {"cohesive": 0.05, "frictional": 0.05, "frictional-associated": 0.3}  # footing push [m]
+#: The MPM's push [m]: to the plateau of each soil (the associated cone dilates and needs most).
+MPM_SETTLEMENT = {"cohesive": 0.03, "frictional": 0.06, "frictional-associated": 0.3}
+#: The MPM study of a soil's collapse load: cell sizes h [m], points per triangle, stress options.
+STUDY = {"h": (0.1, 0.05, 0.025), "ppc": (1, 4), "stress": ("cell", "particle")}
 
 
 def prandtl_nc(phi):
@@ -175,10 +182,12 @@ def mpm_half_space(h, above=2, growth=1.25):
 
 
 def run_mpm(
-    kind="cohesive", h=0.05, settlement=0.03, ppc=4, speed=3e-4, damping=0.1, records=40, progress=True,
-    footing="nodes",
+    kind="cohesive", h=0.05, settlement=None, ppc=4, speed=3e-4, damping=0.1, records=40, progress=True,
+    footing="nodes", **options,
 ):  # fmt: skip
     """The same footing with the explicit MPM, pushed down quasi-statically; returns q(settlement).
+
+    ``settlement`` [m]: default ``MPM_SETTLEMENT[kind]``.
 
     The rigid footing (``footing="nodes"``) is the set of grid nodes inside it: ``x <= B/2``
     and above its base, which moves down at ``speed`` times the p-wave speed (no horizontal
@@ -190,9 +199,11 @@ def run_mpm(
     and jumps as the base passes mid-cell, so the nodes stay the default). The symmetry planes
     and the fixed base are nodal conditions on mesh lines. Local damping takes out the waves.
     ``q`` is the footing's vertical reaction over B/2, averaged over each of ``records``
-    intervals.
+    intervals. ``options``: the solver's numerical options (:class:`dolfin_mpm.explicit.options.Options`),
+    e.g. ``stress="particle"``.
     """
     material, n_c = soil(kind)
+    settlement = MPM_SETTLEMENT[kind] if settlement is None else settlement
     grid = dm.Grid(mpm_half_space(h, above=2 + math.ceil(settlement / h)))  # room for the heave
     tol = 1e-9
     particles = dm.seed(grid, material, ppc=ppc, where=lambda x: x[1] < tol)
@@ -210,7 +221,7 @@ def run_mpm(
         bcs = [*bcs, *walls]
     elif footing != "nodes":
         raise ValueError(f"footing must be 'nodes' or 'walls', got {footing!r}")
-    solver = dm.Solver(grid, particles, material, bcs=bcs, damping=damping)
+    solver = dm.Solver(grid, particles, material, bcs=bcs, damping=damping, **options)
     under = grid.node_x[:, 0] < B / 2 + tol
     nodes = np.zeros(0, dtype=np.int64)
     every = math.ceil(settlement / (v * solver.dt) / records)
@@ -245,8 +256,44 @@ def run_mpm(
         "particles": len(particles),
         "steps": every * records,
         "run_seconds": time.perf_counter() - start,
+        "h": h,
+        "ppc": ppc,
+        "speed": speed,
+        "options": options,
         "curve": curve,
     }
+
+
+def study_mpm(kind="frictional-associated", study=None, speed=3e-4, progress=True) -> list[dict]:
+    """The MPM collapse load of ``kind`` on every combination of ``study`` (default :data:`STUDY`).
+
+    One row per run: ``h``, ``ppc``, ``stress``, and ``q_u_over_c``, ``error`` and
+    ``plateau_spread`` of :func:`run_mpm`, or ``failed``: the message of a run that went bad.
+    """
+    study = STUDY if study is None else study
+    rows = []
+    for h in study["h"]:
+        for ppc in study["ppc"]:
+            for stress in study["stress"]:
+                row = {"h": h, "ppc": ppc, "stress": stress}
+                try:
+                    res = run_mpm(kind, h=h, ppc=ppc, speed=speed, progress=False, stress=stress)
+                    row.update({k: res[k] for k in ("q_u_over_c", "error", "plateau_spread", "steps")})
+                except dm.SimulationError as err:
+                    row["failed"] = str(err)
+                rows.append(row)
+                if progress:
+                    print(study_line(row), flush=True)
+    return rows
+
+
+def study_line(row) -> str:
+    """One run of :func:`study_mpm` as a table row: h [mm], points, stress, q_u / c, error, spread."""
+    head = f"| {1e3 * row['h']:g} | {row['ppc']} | `{row['stress']}` |"
+    if "failed" in row:
+        return f"{head} stopped: {row['failed'].split(':')[0]} | | |"
+    q, error, spread = row["q_u_over_c"], 100 * row["error"], 100 * row["plateau_spread"]
+    return f"{head} {q:.2f} | {error:+.1f} % | {spread:.1f} % |"
 
 
 def save(folder, fe, mpm):
@@ -273,12 +320,24 @@ def plot(results, path, mpm=()):
         ax.legend()
 
 
-if __name__ == "__main__":
+def main():
+    """The command line: the FE run and the MPM run of one soil, or the MPM study."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0].lstrip("# "))
     parser.add_argument("--soil", default="cohesive", choices=SOILS)
     parser.add_argument("--quick", action="store_true", help="coarse meshes, few steps")
     parser.add_argument("--output", type=Path, default=Path("results/footing"))
+    parser.add_argument(
+        "--study", action="store_true", help="the MPM's collapse load on 10, 5, 2.5 cm cells, 1 and 4 points"
+    )
     args = parser.parse_args()
+    if args.study:
+        quick = {"h": (0.1,), "ppc": (1,), "stress": ("cell", "particle")}
+        print("| h [mm] | points per triangle | stress | q_u / c | error | spread over the last quarter |")
+        print("|---|---|---|---|---|---|")
+        rows = study_mpm(args.soil, quick if args.quick else None, speed=1e-3 if args.quick else 3e-4)
+        args.output.mkdir(parents=True, exist_ok=True)
+        (args.output / f"footing_{args.soil}_study.json").write_text(json.dumps(rows, indent=1))
+        return
     res = run(args.soil, 12, steps=10) if args.quick else run(args.soil)
     mpm = run_mpm(args.soil, h=0.1, ppc=1) if args.quick else run_mpm(args.soil)
     save(args.output, res, mpm)
@@ -293,3 +352,7 @@ if __name__ == "__main__":
         f"{100 * mpm['plateau_spread']:.1f} %; {mpm['particles']} particles, {mpm['steps']} steps, "
         f"{mpm['run_seconds']:.1f} s"
     )
+
+
+if __name__ == "__main__":
+    main()

@@ -34,13 +34,11 @@ def run_all(quick=False):
         "footing_cohesive": lambda: demo_footing.run("cohesive", **footing, progress=False),
         "footing_cohesive_mpm": lambda: demo_footing.run_mpm("cohesive", **footing_mpm, progress=False),
         "footing_frictional": lambda: demo_footing.run("frictional", **footing, progress=False),
-        "footing_frictional_mpm": lambda: demo_footing.run_mpm(
-            "frictional", settlement=0.06, **footing_mpm, progress=False
-        ),
+        "footing_frictional_mpm": lambda: demo_footing.run_mpm("frictional", **footing_mpm, progress=False),
         "footing_associated": lambda: demo_footing.run("frictional-associated", **footing, progress=False),
         # Collapse needs 0.3 m of settlement: 10 cm cells, one particle each; faster when quick.
         "footing_associated_mpm": lambda: demo_footing.run_mpm(
-            "frictional-associated", h=0.1, ppc=1, settlement=0.3, speed=associated_speed, progress=False
+            "frictional-associated", h=0.1, ppc=1, speed=associated_speed, progress=False
         ),
         "oedometer": lambda: demo_oedometer.run(progress=False),
         "oedometer_mpm": lambda: demo_oedometer.run_mpm(),

@@ -1,11 +1,14 @@
 """The benchmarks against analytical solutions, run small: the reference FE solver and the MPM."""
 
+import json
+
 import numpy as np
 import pytest
 from dolfinx import mesh
 from mpi4py import MPI
 from test_demos import load
 
+import dolfin_mpm as dm
 from dolfin_mpm.fe import ConvergenceError, QuasiStatic
 from dolfin_mpm.materials import MohrCoulombDruckerPrager, VonMises
 
@@ -37,6 +40,40 @@ def test_footing_mpm_on_cohesive_soil_reaches_prandtl(footing):
     r = load("demo_footing").run_mpm("cohesive", h=0.1, ppc=1, progress=False, footing=footing)
     assert abs(r["error"]) < 0.10  # the issue's 10 % for the MPM
     assert r["plateau_spread"] < 0.05
+
+
+def test_footing_mpm_study_quick(tmp_path, monkeypatch, capsys):
+    """The associated footing's MPM study on its coarsest variant: a table row and a JSON row for
+    each stress option, each with a collapse load on a levelled-off curve."""
+    demo = load("demo_footing")
+    argv = ["demo", "--soil", "frictional-associated", "--study", "--quick", "--output", str(tmp_path)]
+    monkeypatch.setattr("sys.argv", argv)
+    demo.main()
+    rows = json.loads((tmp_path / "footing_frictional-associated_study.json").read_text())
+    assert [(r["h"], r["ppc"], r["stress"]) for r in rows] == [(0.1, 1, "cell"), (0.1, 1, "particle")]
+    for r in rows:
+        assert "failed" not in r and 0.5 < r["q_u_over_c"] / 30.14 < 1.5 and r["plateau_spread"] < 0.3
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith("| h [mm] |") and out[2].startswith("| 100 | 1 | `cell` |")
+    assert out[3].startswith("| 100 | 1 | `particle` |") and len(out) == 4
+
+
+def test_footing_mpm_study_reports_a_run_that_went_bad(monkeypatch):
+    """A run that stops is a row of the study with its message, and the study goes on."""
+    demo = load("demo_footing")
+    calls = []
+
+    def run_mpm(kind, h, ppc, speed, progress, stress):
+        calls.append(stress)
+        if stress == "cell":
+            raise dm.SimulationError("step 7, t = 0.1 s: particle 3 at x = [0 0 0] has a non-positive volume")
+        return {"q_u_over_c": 30.0, "error": -0.005, "plateau_spread": 0.01, "steps": 9}
+
+    monkeypatch.setattr(demo, "run_mpm", run_mpm)
+    rows = demo.study_mpm(study={"h": (0.1,), "ppc": (1,), "stress": ("cell", "particle")}, progress=False)
+    assert calls == ["cell", "particle"] and "non-positive volume" in rows[0]["failed"]
+    assert demo.study_line(rows[0]) == "| 100 | 1 | `cell` | stopped: step 7, t = 0.1 s | | |"
+    assert demo.study_line(rows[1]) == "| 100 | 1 | `particle` | 30.00 | -0.5 % | 1.0 % |"
 
 
 def test_footing_on_frictional_soil_with_the_plane_strain_matched_associated_cone_reaches_prandtl():
