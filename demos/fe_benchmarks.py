@@ -36,9 +36,10 @@ def run_all(quick=False):
         "footing_frictional": lambda: demo_footing.run("frictional", **footing, progress=False),
         "footing_frictional_mpm": lambda: demo_footing.run_mpm("frictional", **footing_mpm, progress=False),
         "footing_associated": lambda: demo_footing.run("frictional-associated", **footing, progress=False),
-        # Collapse needs 0.3 m of settlement: 10 cm cells, one particle each; faster when quick.
+        # Collapse needs 0.1 m of settlement, the push goes on to 0.3 m: 10 cm cells, four
+        # particles each (one each leaves cells empty as the soil moves); faster when quick.
         "footing_associated_mpm": lambda: demo_footing.run_mpm(
-            "frictional-associated", h=0.1, ppc=1, speed=associated_speed, progress=False
+            "frictional-associated", h=0.1, ppc=1 if quick else 4, speed=associated_speed, progress=False
         ),
         "oedometer": lambda: demo_oedometer.run(progress=False),
         "oedometer_mpm": lambda: demo_oedometer.run_mpm(),
@@ -81,8 +82,9 @@ def report(res, path: Path, quick: bool):
         ("footing, cohesive: q_u / c", f"{coh['N_c']:.3f}", f"{coh['q_u_over_c']:.3f}", pct(coh["error"]),
          f"{coh_m['q_u_over_c']:.3f}", pct(coh_m["error"])),
         ("footing, phi = 30 deg, DP matched to MC in plane strain, associated: q_u / c", f"{aso['N_c']:.2f}",
-         f"{aso['q_u_over_c']:.2f}", pct(aso["error"]), f"{aso_m['q_u_over_c']:.2f} (plateau)",
-         pct(aso_m["error"])),
+         f"{aso['q_u_over_c']:.2f}", pct(aso["error"]),
+         f"{aso_m['q_10_over_c']:.2f} (at s = 0.1 B; {aso_m['q_u_over_c']:.2f} at 0.3 m)",
+         pct(aso_m["error_10"])),
         ("footing, phi = 30 deg, the paper's DP (m = 1.029, g = q): q_u / c",
          f"{fri['N_c']:.2f} (MC, associated); {davis:.1f} (Davis, psi = 0)", fri_fe, fri_err,
          f"{fri_m['q_u_over_c']:.2f} (plateau)", f"{pct(fri_m['q_u_over_c'] / davis - 1.0)} of Davis"),
@@ -138,10 +140,16 @@ def report(res, path: Path, quick: bool):
         "least that; by Radenkovic's theorem it is at most the associated value, 67. "
         "The explicit MPM has no Newton iteration to fail: pushed down slowly it settles on a "
         "plateau, a collapse load of the same non-unique problem, between the FE lower bound and "
-        "Davis's estimate. The associated cone dilates and needs 0.3 m of settlement to collapse; "
-        "its MPM footing (the grid nodes inside it, joined as its base sinks) runs on 10 cm cells "
-        f"with one particle each, loaded at {'1e-3' if quick else '3e-4'} of the p-wave speed; its "
-        "collapse load depends on that speed and on the numerical options (`docs/numerics.md`).",
+        "Davis's estimate. The associated cone dilates: the small-strain FE reaches its plateau "
+        "at about 0.1 m of settlement (0.1 B). Its MPM footing (the grid nodes inside it, joined "
+        f"as its base sinks) runs on 10 cm cells with {'one particle' if quick else 'four particles'} "
+        f"each, loaded at {'1e-3' if quick else '3e-4'} of the p-wave speed, to 0.3 m. The MPM is "
+        "a large-deformation method: as the footing sinks into the dilating soil and the heave "
+        "rises round it, its load keeps growing past the small-strain plateau, so its failure load "
+        "is taken by the 10 % criterion, q at a settlement of 0.1 B. With one particle per "
+        "triangle the cells empty as the soil moves and the load falls away from the FE's from "
+        "about 40 mm on (`python demos/demo_footing.py --soil frictional-associated --study`; "
+        "`docs/numerics.md`).",
         "",
         "| run | FE: Newton iterations per step | FE: solve [s] | FE: total [s] | MPM: particles | "
         "MPM: steps | MPM: total [s] |",
@@ -159,7 +167,8 @@ def report(res, path: Path, quick: bool):
     path.write_text("\n".join(lines))
 
 
-if __name__ == "__main__":
+def main():
+    """The command line: every benchmark, then the report."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0].lstrip("# "))
     parser.add_argument("--quick", action="store_true", help="the quick variants (coarse meshes)")
     parser.add_argument("--report", type=Path, default=Path("results/benchmarks.md"))
@@ -167,3 +176,7 @@ if __name__ == "__main__":
     results = run_all(args.quick)
     report(results, args.report, args.quick)
     print(f"wrote {args.report}")
+
+
+if __name__ == "__main__":
+    main()

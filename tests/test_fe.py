@@ -51,11 +51,31 @@ def test_footing_mpm_study_quick(tmp_path, monkeypatch, capsys):
     demo.main()
     rows = json.loads((tmp_path / "footing_frictional-associated_study.json").read_text())
     assert [(r["h"], r["ppc"], r["stress"]) for r in rows] == [(0.1, 1, "cell"), (0.1, 1, "particle")]
+    n_c = demo.prandtl_nc(30.0)
     for r in rows:
-        assert "failed" not in r and 0.5 < r["q_u_over_c"] / 30.14 < 1.5 and r["plateau_spread"] < 0.3
+        assert "failed" not in r and 0.5 < r["q_u_over_c"] / n_c < 1.5 and r["plateau_spread"] < 0.3
+        assert (
+            r["error_10"] == pytest.approx(r["q_10_over_c"] / n_c - 1) and 0.5 < r["q_10_over_c"] / n_c < 1.5
+        )
     out = capsys.readouterr().out.splitlines()
     assert out[0].startswith("| h [mm] |") and out[2].startswith("| 100 | 1 | `cell` |")
     assert out[3].startswith("| 100 | 1 | `particle` |") and len(out) == 4
+
+
+def test_fe_benchmarks_quick_report(tmp_path, monkeypatch):
+    """Every benchmark's quick variant runs and the report has a row for each, with its figures."""
+    report = tmp_path / "benchmarks.md"
+    monkeypatch.setattr("sys.argv", ["fe_benchmarks", "--quick", "--report", str(report)])
+    load("fe_benchmarks").main()
+    text = report.read_text()
+    heads = ("| benchmark |", "| run |")
+    rows = [line for line in text.splitlines() if line.startswith("| ") and not line.startswith(heads)]
+    assert len(rows) == 9 + 5  # the benchmarks, then what each run cost
+    (associated,) = [row for row in rows if row.startswith("| footing, phi = 30 deg, DP matched")]
+    mpm, error = associated.split(" | ")[-2:]
+    assert "(at s = 0.1 B;" in mpm and error.endswith("% |") and "--quick --report" in text
+    for name in ("fe_cylinder", "fe_footing", "fe_oedometer"):
+        assert (tmp_path / "images" / f"{name}.png").stat().st_size > 0
 
 
 def test_footing_mpm_study_reports_a_run_that_went_bad(monkeypatch):
@@ -67,13 +87,14 @@ def test_footing_mpm_study_reports_a_run_that_went_bad(monkeypatch):
         calls.append(stress)
         if stress == "cell":
             raise dm.SimulationError("step 7, t = 0.1 s: particle 3 at x = [0 0 0] has a non-positive volume")
-        return {"q_u_over_c": 30.0, "error": -0.005, "plateau_spread": 0.01, "steps": 9}
+        q = {"q_u_over_c": 30.0, "error": -0.005, "q_10_over_c": 29.0, "error_10": -0.038}
+        return {**q, "plateau_spread": 0.01, "steps": 9}
 
     monkeypatch.setattr(demo, "run_mpm", run_mpm)
     rows = demo.study_mpm(study={"h": (0.1,), "ppc": (1,), "stress": ("cell", "particle")}, progress=False)
     assert calls == ["cell", "particle"] and "non-positive volume" in rows[0]["failed"]
-    assert demo.study_line(rows[0]) == "| 100 | 1 | `cell` | stopped: step 7, t = 0.1 s | | |"
-    assert demo.study_line(rows[1]) == "| 100 | 1 | `particle` | 30.00 | -0.5 % | 1.0 % |"
+    assert demo.study_line(rows[0]) == "| 100 | 1 | `cell` | stopped: step 7, t = 0.1 s | | | | |"
+    assert demo.study_line(rows[1]) == "| 100 | 1 | `particle` | 29.00 | -3.8 % | 30.00 | -0.5 % | 1.0 % |"
 
 
 def test_footing_on_frictional_soil_with_the_plane_strain_matched_associated_cone_reaches_prandtl():
