@@ -62,6 +62,17 @@ def test_footing_mpm_study_quick(tmp_path, monkeypatch, capsys):
     assert out[3].startswith("| 100 | 1 | `particle` |") and len(out) == 4
 
 
+def test_footing_command_line_quick(tmp_path, monkeypatch, capsys):
+    """The demo's command line: the FE and the MPM runs of one soil, their JSON, plot and summary."""
+    monkeypatch.setattr("sys.argv", ["demo", "--soil", "cohesive", "--quick", "--output", str(tmp_path)])
+    load("demo_footing").main()
+    saved = json.loads((tmp_path / "footing_cohesive.json").read_text())
+    assert saved["mpm"]["soil"] == "cohesive" and saved["fe"]["failed_at"] is None
+    assert (tmp_path / "footing_cohesive.png").stat().st_size > 0
+    out = capsys.readouterr().out
+    assert "\ncohesive: q_u / c = " in out and out.splitlines()[-1].startswith("MPM: q_u / c = ")
+
+
 def test_fe_benchmarks_quick_report(tmp_path, monkeypatch):
     """Every benchmark's quick variant runs and the report has a row for each, with its figures."""
     report = tmp_path / "benchmarks.md"
