@@ -56,6 +56,12 @@ MPM_SETTLEMENT = {"cohesive": 0.03, "frictional": 0.06, "frictional-associated":
 MPM_OPTIONS = {"frictional-associated": {"courant": 0.25}}
 #: The MPM study of a soil's collapse load: cell sizes h [m], points per triangle, stress options.
 STUDY = {"h": (0.1, 0.05, 0.025), "ppc": (1, 4), "stress": ("cell", "particle")}
+#: The head of the study's table (:func:`study_line`).
+STUDY_HEAD = (
+    "| h [mm] | points per triangle | stress | q / c at s = 0.1 B | error "
+    "| q_u / c, last quarter | error | spread |\n"
+    "|---|---|---|---|---|---|---|---|"
+)
 #: The settlement over B at which a footing with no plateau has failed (the 10 % criterion).
 FAILURE_SETTLEMENT = 0.1
 
@@ -211,8 +217,8 @@ def run_mpm(
     e.g. ``stress="particle"``, over :data:`MPM_OPTIONS`.
 
     ``q_u_over_c`` is the mean over the last quarter of the push; ``q_10_over_c`` is ``q`` at a
-    settlement of :data:`FAILURE_SETTLEMENT` B (the failure load by the 10 % criterion, for a
-    push that reaches it): where the soil dilates, the footing sinks into it and the heave
+    settlement of :data:`FAILURE_SETTLEMENT` B (the failure load by the 10 % criterion; ``None``
+    for a shorter push): where the soil dilates, the footing sinks into it and the heave
     around it rises, and the large-deformation load keeps growing past the small-strain plateau.
     """
     material, n_c = soil(kind)
@@ -262,16 +268,15 @@ def run_mpm(
     q = np.array(curve["q"])
     q_u = q[-records // 4 :].mean()  # the plateau: the mean over the last quarter
     s_mid = 0.5 * settlement / records * (2 * np.arange(1, records + 1) - 1)  # each mean's interval
-    q_10 = (
-        np.interp(FAILURE_SETTLEMENT * B, s_mid, q[1:]) if settlement >= FAILURE_SETTLEMENT * B else math.nan
-    )
+    reached = settlement >= FAILURE_SETTLEMENT * B
+    q_10 = np.interp(FAILURE_SETTLEMENT * B, s_mid, q[1:]) / C if reached else None
     return {
         "soil": kind,
         "N_c": float(n_c),
         "q_u_over_c": float(q_u / C),
         "error": float(q_u / (n_c * C) - 1.0),
-        "q_10_over_c": float(q_10 / C),
-        "error_10": float(q_10 / (n_c * C) - 1.0),
+        "q_10_over_c": None if q_10 is None else float(q_10),
+        "error_10": None if q_10 is None else float(q_10 / n_c - 1.0),
         "plateau_spread": float(q[-records // 4 :].max() / q[-records // 4 :].min() - 1.0),
         "particles": len(particles),
         "steps": every * records,
@@ -287,8 +292,9 @@ def run_mpm(
 def study_mpm(kind="frictional-associated", study=None, speed=3e-4, progress=True) -> list[dict]:
     """The MPM collapse load of ``kind`` on every combination of ``study`` (default :data:`STUDY`).
 
-    One row per run: ``h``, ``ppc``, ``stress``, and ``q_u_over_c``, ``error`` and
-    ``plateau_spread`` of :func:`run_mpm`, or ``failed``: the message of a run that went bad.
+    One row per run: ``h``, ``ppc``, ``stress``, and ``q_u_over_c``, ``error``,
+    ``q_10_over_c``, ``error_10``, ``plateau_spread`` and ``steps`` of :func:`run_mpm`, or
+    ``failed``: the message of a run that went bad.
     """
     study = STUDY if study is None else study
     rows = []
@@ -308,22 +314,15 @@ def study_mpm(kind="frictional-associated", study=None, speed=3e-4, progress=Tru
     return rows
 
 
-#: The head of :func:`study_line`'s table.
-STUDY_HEAD = (
-    "| h [mm] | points per triangle | stress | q / c at s = 0.1 B | error "
-    "| q_u / c, last quarter | error | spread |\n"
-    "|---|---|---|---|---|---|---|---|"
-)
-
-
 def study_line(row) -> str:
     """One run of :func:`study_mpm` as a row of :data:`STUDY_HEAD`'s table."""
     head = f"| {1e3 * row['h']:g} | {row['ppc']} | `{row['stress']}` |"
     if "failed" in row:
         return f"{head} stopped: {row['failed'].split(':')[0]} | | | | |"
-    pct = lambda key: f"{100 * row[key]:+.1f} %"  # noqa: E731
+    pct = lambda key: "—" if row[key] is None else f"{100 * row[key]:+.1f} %"  # noqa: E731
+    q_10 = "—" if row["q_10_over_c"] is None else f"{row['q_10_over_c']:.2f}"
     return (
-        f"{head} {row['q_10_over_c']:.2f} | {pct('error_10')} | {row['q_u_over_c']:.2f} | {pct('error')} "
+        f"{head} {q_10} | {pct('error_10')} | {row['q_u_over_c']:.2f} | {pct('error')} "
         f"| {100 * row['plateau_spread']:.1f} % |"
     )
 

@@ -68,6 +68,10 @@ def test_footing_command_line_quick(tmp_path, monkeypatch, capsys):
     load("demo_footing").main()
     saved = json.loads((tmp_path / "footing_cohesive.json").read_text())
     assert saved["mpm"]["soil"] == "cohesive" and saved["fe"]["failed_at"] is None
+    assert saved["mpm"]["q_10_over_c"] is None  # a push of 3 cm does not reach 0.1 B
+    row = {"h": 0.1, "ppc": 1, "stress": "cell", **{k: saved["mpm"][k] for k in ("q_10_over_c", "error_10")}}
+    row.update(q_u_over_c=5.4, error=0.05, plateau_spread=0.041)
+    assert load("demo_footing").study_line(row) == "| 100 | 1 | `cell` | — | — | 5.40 | +5.0 % | 4.1 % |"
     assert (tmp_path / "footing_cohesive.png").stat().st_size > 0
     out = capsys.readouterr().out
     assert "\ncohesive: q_u / c = " in out and out.splitlines()[-1].startswith("MPM: q_u / c = ")
