@@ -113,14 +113,13 @@ def test_the_native_pair_weights_give_the_portable_builds_bits(tmp_path, monkeyp
                 row, begin = np.empty(runs, np.int32), np.zeros(runs + 1, np.int64)
                 j, w, counts = np.empty(capacity, np.int32), np.empty(capacity), np.zeros(2, np.int64)
                 lib.pair_weights(
-                    runs, pairs.row, pairs.begin, pairs.j, gdim, x, 1.0 / radius, kind, capacity, row, begin, j, w,
-                    counts,
+                    runs, pairs.row, pairs.begin, pairs.j, gdim, x, 1.0 / radius, kind, capacity,
+                    row, begin, j, w, counts,
                 )  # fmt: skip
                 near = int(counts[1])
                 assert near <= capacity
-                results[len(flags), kind, capacity == m] = [
-                    a.tobytes() for a in (counts, row[: counts[0]], begin[: counts[0] + 1], j[:near], w[:near])
-                ]
+                kept = (counts, row[: counts[0]], begin[: counts[0] + 1], j[:near], w[:near])
+                results[len(flags), kind, capacity == m] = [a.tobytes() for a in kept]
     assert 0 < near < m
     for key in [k for k in results if k[0] > 0]:
         assert results[key] == results[(0, *key[1:])]
