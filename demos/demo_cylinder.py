@@ -197,6 +197,53 @@ def run_mpm(n_radial=10, n_theta=20, ppc=4, speed=3e-5, damping=0.1, u_max=1e-3,
     }
 
 
+#: The mesh and time-step study: cells across the wall x along the quarter (the FE mesh; the
+#: MPM's grid is it continued beyond b), and the MPM's loading speed over the p-wave speed (the
+#: bore moves ``u_max`` in proportionally more steps).
+STUDY = {"mesh": ((5, 10), (10, 20), (20, 40)), "speed": (3e-5, 1.5e-5)}
+#: The head of the study's table (:func:`study_lines`).
+STUDY_HEAD = (
+    "| cells (across x along) | FE: p_max / p_lim - 1 | MPM speed / c_p | MPM: plateau / p_lim - 1 "
+    "| plateau spread | p(u_b) before it vs Hill | particles | steps |\n"
+    "|---|---|---|---|---|---|---|---|"
+)
+
+
+def study(mesh_study=None, progress=True) -> list[dict]:
+    """The limit pressure's dependence on the mesh (FE and MPM) and on the MPM's loading speed.
+
+    ``mesh_study``: as :data:`STUDY` (its default). One row per mesh: ``n_radial``, ``n_theta``,
+    the FE's ``fe_limit_error`` and, per speed, the MPM's ``limit_error``, ``plateau_spread``,
+    ``path_error``, ``particles`` and ``steps`` (relative to ``p_lim``).
+    """
+    mesh_study = STUDY if mesh_study is None else mesh_study
+    rows = []
+    for n_radial, n_theta in mesh_study["mesh"]:
+        fe = run(n_radial, n_theta, progress=False)
+        row = {"n_radial": n_radial, "n_theta": n_theta, "fe_limit_error": fe["limit_error"], "mpm": []}
+        for speed in mesh_study["speed"]:
+            mpm = run_mpm(n_radial, n_theta, speed=speed, progress=False)
+            keys = ("limit_error", "plateau_spread", "path_error", "particles", "steps")
+            row["mpm"].append({"speed": speed, **{k: mpm[k] for k in keys}})
+        rows.append(row)
+        if progress:
+            print("\n".join(study_lines(row)), flush=True)
+    return rows
+
+
+def study_lines(row) -> list[str]:
+    """One mesh of :func:`study` as rows of :data:`STUDY_HEAD`'s table, one per MPM speed."""
+    pct = lambda x: f"{100 * x:+.2f} %"  # noqa: E731
+    lines = []
+    for k, m in enumerate(row["mpm"]):
+        head = f"| {row['n_radial']} x {row['n_theta']} | {pct(row['fe_limit_error'])}" if k == 0 else "| |"
+        lines.append(
+            f"{head} | {m['speed']:g} | {pct(m['limit_error'])} | {100 * m['plateau_spread']:.1f} % "
+            f"| {100 * m['path_error']:.1f} % | {m['particles']} | {m['steps']} |"
+        )
+    return lines
+
+
 def save(folder, fe, mpm):
     """Write both results (JSON) and their plot into ``folder``."""
     folder = Path(folder)
@@ -230,11 +277,23 @@ def plot(result, path, mpm=None):
         ax2.legend()
 
 
-if __name__ == "__main__":
+def main():
+    """The command line: the FE run and the MPM run, or the mesh and time-step study."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0].lstrip("# "))
     parser.add_argument("--quick", action="store_true", help="coarse mesh, large load steps")
     parser.add_argument("--output", type=Path, default=Path("results/cylinder"))
+    parser.add_argument(
+        "--study",
+        action="store_true",
+        help="the limit pressure on three meshes, the MPM at two loading speeds",
+    )
     args = parser.parse_args()
+    if args.study:
+        print(STUDY_HEAD)
+        rows = study({"mesh": ((5, 10),), "speed": (3e-5,)} if args.quick else None)
+        args.output.mkdir(parents=True, exist_ok=True)
+        (args.output / "cylinder_study.json").write_text(json.dumps(rows, indent=1))
+        return
     res = run(5, 10, 0.1) if args.quick else run()
     mpm = run_mpm(5, 10) if args.quick else run_mpm()
     save(args.output, res, mpm)
@@ -251,3 +310,7 @@ if __name__ == "__main__":
         f"{100 * mpm['path_error']:.1f} % of p_lim; {mpm['particles']} particles, {mpm['steps']} steps, "
         f"{mpm['run_seconds']:.1f} s"
     )
+
+
+if __name__ == "__main__":
+    main()

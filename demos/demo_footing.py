@@ -28,6 +28,7 @@ cells with one point, a minute).
 """
 
 import argparse
+import itertools
 import json
 import math
 import time
@@ -40,6 +41,7 @@ import numpy as np
 from dolfinx import mesh
 from mpi4py import MPI
 
+from dolfin_mpm.explicit.options import Options
 from dolfin_mpm.fe import ConvergenceError, QuasiStatic
 from dolfin_mpm.post.plotting import figure
 
@@ -57,11 +59,20 @@ MPM_SETTLEMENT = {"cohesive": 0.03, "frictional": 0.06, "frictional-associated":
 MPM_OPTIONS = {"frictional-associated": {"courant": 0.25}}
 #: The MPM study of a soil's collapse load: cell sizes h [m], points per triangle, stress options.
 STUDY = {"h": (0.1, 0.05, 0.025), "ppc": (1, 4), "stress": ("cell", "particle")}
+#: The time step's study at the cohesive benchmark's cells: the loading speed over the p-wave
+#: speed, and the Courant number of the automatic step (None: the soil's, :data:`MPM_OPTIONS`).
+TIME_STUDY = {
+    "h": (0.05,),
+    "ppc": (4,),
+    "stress": ("cell",),
+    "speed": (3e-4, 1.5e-4),
+    "courant": (None, 0.25),
+}
 #: The head of the study's table (:func:`study_line`).
 STUDY_HEAD = (
-    "| h [mm] | points per triangle | stress | q / c at s = 0.1 B | error "
+    "| h [mm] | points per triangle | stress | speed / c_p | Courant | q / c at s = 0.1 B | error "
     "| q_u / c, last quarter | error | spread |\n"
-    "|---|---|---|---|---|---|---|---|"
+    "|---|---|---|---|---|---|---|---|---|---|"
 )
 #: The settlement over B at which a footing with no plateau has failed (the 10 % criterion).
 FAILURE_SETTLEMENT = 0.1
@@ -293,31 +304,35 @@ def run_mpm(
 def study_mpm(kind="frictional-associated", study=None, speed=3e-4, progress=True) -> list[dict]:
     """The MPM collapse load of ``kind`` on every combination of ``study`` (default :data:`STUDY`).
 
-    One row per run: ``h``, ``ppc``, ``stress``, and ``q_u_over_c``, ``error``,
-    ``q_10_over_c``, ``error_10``, ``plateau_spread`` and ``steps`` of :func:`run_mpm`, or
-    ``failed``: the message of a run that went bad.
+    ``study`` maps ``h``, ``ppc``, ``stress`` and, optionally, ``speed`` (default: ``speed``) and
+    ``courant`` (default and ``None``: the soil's) to the values to run. One row per run: those
+    five, and ``q_u_over_c``, ``error``, ``q_10_over_c``, ``error_10``, ``plateau_spread`` and
+    ``steps`` of :func:`run_mpm`, or ``failed``: the message of a run that went bad.
     """
-    study = STUDY if study is None else study
+    study = {"speed": (speed,), "courant": (None,), **(STUDY if study is None else study)}
+    default_courant = MPM_OPTIONS.get(kind, {}).get("courant", Options().courant)
     rows = []
-    for h in study["h"]:
-        for ppc in study["ppc"]:
-            for stress in study["stress"]:
-                row = {"h": h, "ppc": ppc, "stress": stress}
-                try:
-                    res = run_mpm(kind, h=h, ppc=ppc, speed=speed, progress=False, stress=stress)
-                    keys = ("q_u_over_c", "error", "q_10_over_c", "error_10", "plateau_spread", "steps")
-                    row.update({k: res[k] for k in keys})
-                except dm.SimulationError as err:
-                    row["failed"] = str(err)
-                rows.append(row)
-                if progress:
-                    print(study_line(row), flush=True)
+    runs = itertools.product(*(study[k] for k in ("h", "ppc", "stress", "speed", "courant")))
+    for h, ppc, stress, v, courant in runs:
+        courant = default_courant if courant is None else courant
+        row = {"h": h, "ppc": ppc, "stress": stress, "speed": v, "courant": courant}
+        try:
+            res = run_mpm(kind, h=h, ppc=ppc, speed=v, progress=False, stress=stress, courant=courant)
+            keys = ("q_u_over_c", "error", "q_10_over_c", "error_10", "plateau_spread", "steps")
+            row.update({k: res[k] for k in keys})
+        except dm.SimulationError as err:
+            row["failed"] = str(err)
+        rows.append(row)
+        if progress:
+            print(study_line(row), flush=True)
     return rows
 
 
 def study_line(row) -> str:
     """One run of :func:`study_mpm` as a row of :data:`STUDY_HEAD`'s table."""
-    head = f"| {1e3 * row['h']:g} | {row['ppc']} | `{row['stress']}` |"
+    head = (
+        f"| {1e3 * row['h']:g} | {row['ppc']} | `{row['stress']}` | {row['speed']:g} | {row['courant']:g} |"
+    )
     if "failed" in row:
         return f"{head} stopped: {row['failed'].split(':')[0]} | | | | |"
     pct = lambda key: "—" if row[key] is None else f"{100 * row[key]:+.1f} %"  # noqa: E731
@@ -359,15 +374,22 @@ def main():
     parser.add_argument("--quick", action="store_true", help="coarse meshes, few steps")
     parser.add_argument("--output", type=Path, default=Path("results/footing"))
     parser.add_argument(
-        "--study", action="store_true", help="the MPM's collapse load on 10, 5, 2.5 cm cells, 1 and 4 points"
-    )
+        "--study", nargs="?", const="mesh", choices=["mesh", "time"],
+        help="the MPM's collapse load on 10, 5, 2.5 cm cells with 1 and 4 points (mesh, the default), "
+        "or at two loading speeds and Courant numbers (time)",
+    )  # fmt: skip
     args = parser.parse_args()
     if args.study:
-        quick = {"h": (0.1,), "ppc": (1,), "stress": ("cell", "particle")}
+        if args.quick:
+            quick = {"mesh": {"stress": ("cell", "particle")}, "time": {"courant": (None, 0.25)}}[args.study]
+            study = {"h": (0.1,), "ppc": (1,), "stress": ("cell",), **quick}
+        else:
+            study = {"mesh": STUDY, "time": TIME_STUDY}[args.study]
         print(STUDY_HEAD)
-        rows = study_mpm(args.soil, quick if args.quick else None, speed=1e-3 if args.quick else 3e-4)
+        rows = study_mpm(args.soil, study, speed=1e-3 if args.quick else 3e-4)
         args.output.mkdir(parents=True, exist_ok=True)
-        (args.output / f"footing_{args.soil}_study.json").write_text(json.dumps(rows, indent=1))
+        name = f"footing_{args.soil}_study" + ("" if args.study == "mesh" else "_time")
+        (args.output / f"{name}.json").write_text(json.dumps(rows, indent=1))
         return
     res = run(args.soil, 12, steps=10) if args.quick else run(args.soil)
     mpm = run_mpm(args.soil, h=0.1, ppc=1) if args.quick else run_mpm(args.soil)

@@ -21,6 +21,23 @@ def test_cylinder_limit_pressure_and_elastoplastic_path():
     assert r["c_error"] < 0.1  # plastic radius within a tenth of a (cells are a/5 wide)
 
 
+def test_cylinder_study_quick(tmp_path, monkeypatch, capsys):
+    """The cylinder's mesh and loading-speed study on its coarsest variant: FE and MPM limit
+    pressures in a table row and in JSON."""
+    monkeypatch.setattr("sys.argv", ["demo", "--study", "--quick", "--output", str(tmp_path)])
+    load("demo_cylinder").main()
+    (row,) = json.loads((tmp_path / "cylinder_study.json").read_text())
+    (mpm,) = row["mpm"]
+    assert (row["n_radial"], row["n_theta"], mpm["speed"]) == (5, 10, 3e-5)
+    assert (
+        abs(row["fe_limit_error"]) < 0.01 and abs(mpm["limit_error"]) < 0.05 and mpm["plateau_spread"] < 0.05
+    )
+    out = capsys.readouterr().out.splitlines()
+    assert (
+        out[0].startswith("| cells (across x along) |") and out[2].startswith("| 5 x 10 | ") and len(out) == 3
+    )
+
+
 def test_cylinder_mpm_reaches_the_limit_pressure():
     r = load("demo_cylinder").run_mpm(n_radial=5, n_theta=10, progress=False)
     assert abs(r["limit_error"]) < 0.05  # the issue's 5 % for the MPM
@@ -58,8 +75,27 @@ def test_footing_mpm_study_quick(tmp_path, monkeypatch, capsys):
             r["error_10"] == pytest.approx(r["q_10_over_c"] / n_c - 1) and 0.5 < r["q_10_over_c"] / n_c < 1.5
         )
     out = capsys.readouterr().out.splitlines()
-    assert out[0].startswith("| h [mm] |") and out[2].startswith("| 100 | 1 | `cell` |")
+    assert out[0].startswith("| h [mm] |") and out[2].startswith("| 100 | 1 | `cell` | 0.001 | 0.25 |")
     assert out[3].startswith("| 100 | 1 | `particle` |") and len(out) == 4
+
+
+def test_footing_mpm_time_step_study_quick(tmp_path, monkeypatch, capsys):
+    """The cohesive footing's time-step study on its coarsest variant: the soil's Courant number
+    and half of it, each a row with its collapse load."""
+    demo = load("demo_footing")
+    argv = ["demo", "--soil", "cohesive", "--study", "time", "--quick", "--output", str(tmp_path)]
+    monkeypatch.setattr("sys.argv", argv)
+    demo.main()
+    rows = json.loads((tmp_path / "footing_cohesive_study_time.json").read_text())
+    assert [(r["h"], r["ppc"], r["speed"], r["courant"]) for r in rows] == [
+        (0.1, 1, 1e-3, 0.5),
+        (0.1, 1, 1e-3, 0.25),
+    ]
+    assert rows[1]["steps"] > 1.9 * rows[0]["steps"]  # half the step
+    for r in rows:
+        assert "failed" not in r and abs(r["error"]) < 0.15 and r["q_10_over_c"] is None
+    out = capsys.readouterr().out.splitlines()
+    assert out[3].startswith("| 100 | 1 | `cell` | 0.001 | 0.25 |") and len(out) == 4
 
 
 def test_footing_command_line_quick(tmp_path, monkeypatch, capsys):
@@ -70,8 +106,9 @@ def test_footing_command_line_quick(tmp_path, monkeypatch, capsys):
     assert saved["mpm"]["soil"] == "cohesive" and saved["fe"]["failed_at"] is None
     assert saved["mpm"]["q_10_over_c"] is None  # a push of 3 cm does not reach 0.1 B
     row = {"h": 0.1, "ppc": 1, "stress": "cell", **{k: saved["mpm"][k] for k in ("q_10_over_c", "error_10")}}
-    row.update(q_u_over_c=5.4, error=0.05, plateau_spread=0.041)
-    assert load("demo_footing").study_line(row) == "| 100 | 1 | `cell` | — | — | 5.40 | +5.0 % | 4.1 % |"
+    row.update(speed=3e-4, courant=0.5, q_u_over_c=5.4, error=0.05, plateau_spread=0.041)
+    line = "| 100 | 1 | `cell` | 0.0003 | 0.5 | — | — | 5.40 | +5.0 % | 4.1 % |"
+    assert load("demo_footing").study_line(row) == line
     assert (tmp_path / "footing_cohesive.png").stat().st_size > 0
     out = capsys.readouterr().out
     assert "\ncohesive: q_u / c = " in out and out.splitlines()[-1].startswith("MPM: q_u / c = ")
@@ -98,7 +135,7 @@ def test_footing_mpm_study_reports_a_run_that_went_bad(monkeypatch):
     demo = load("demo_footing")
     calls = []
 
-    def run_mpm(kind, h, ppc, speed, progress, stress):
+    def run_mpm(kind, h, ppc, speed, progress, stress, courant):
         calls.append(stress)
         if stress == "cell":
             raise dm.SimulationError("step 7, t = 0.1 s: particle 3 at x = [0 0 0] has a non-positive volume")
@@ -108,8 +145,9 @@ def test_footing_mpm_study_reports_a_run_that_went_bad(monkeypatch):
     monkeypatch.setattr(demo, "run_mpm", run_mpm)
     rows = demo.study_mpm(study={"h": (0.1,), "ppc": (1,), "stress": ("cell", "particle")}, progress=False)
     assert calls == ["cell", "particle"] and "non-positive volume" in rows[0]["failed"]
-    assert demo.study_line(rows[0]) == "| 100 | 1 | `cell` | stopped: step 7, t = 0.1 s | | | | |"
-    assert demo.study_line(rows[1]) == "| 100 | 1 | `particle` | 29.00 | -3.8 % | 30.00 | -0.5 % | 1.0 % |"
+    head = "| 100 | 1 | `{}` | 0.0003 | 0.25 |"
+    assert demo.study_line(rows[0]) == head.format("cell") + " stopped: step 7, t = 0.1 s | | | | |"
+    assert demo.study_line(rows[1]) == head.format("particle") + " 29.00 | -3.8 % | 30.00 | -0.5 % | 1.0 % |"
 
 
 def test_footing_on_frictional_soil_with_the_plane_strain_matched_associated_cone_reaches_prandtl():
