@@ -226,7 +226,10 @@ def run_mpm(
     and the fixed base are nodal conditions on mesh lines. Local damping takes out the waves.
     ``q`` is the footing's vertical reaction over B/2, averaged over each of ``records``
     intervals. ``options``: the solver's numerical options (:class:`dolfin_mpm.explicit.options.Options`),
-    e.g. ``stress="particle"``, over :data:`MPM_OPTIONS`.
+    e.g. ``stress="particle"``, over :data:`MPM_OPTIONS`. The local damping drags the soil that
+    flows past the footing and raises its load by several per cent, more on finer cells: the
+    benchmark (``fe_benchmarks.py``) pushes the cohesive soil undamped, with the walls, 50 mm
+    (``docs/numerics.md``).
 
     ``q_u_over_c`` is the mean over the last quarter of the push; ``q_10_over_c`` is ``q`` at a
     settlement of :data:`FAILURE_SETTLEMENT` B (the failure load by the 10 % criterion; ``None``
