@@ -102,9 +102,9 @@ static inline int64_t near_run8(int32_t kind, int32_t gdim, const double *restri
 
 /* Two passes: the pairs closer than r from their squared distances, then the weights of the
  * kept ones (contiguous: no gathers, and no root for the pairs dropped); with VECTOR_PAIRS one
- * (near_run8). At most `capacity`
- * are kept: counts[0] = the runs kept, counts[1] = the pairs closer than r, which exceeds
- * `capacity` when the output was too short (then only counted from the run that did not fit). */
+ * (near_run8). At most `capacity` are kept: counts[0] = the runs kept, counts[1] = the pairs
+ * closer than r, which exceeds `capacity` when the output was too short (then only counted from
+ * the run that did not fit). */
 static inline void weights_of(int32_t kind, int32_t gdim, int64_t runs, const int32_t *restrict row,
                               const int64_t *restrict begin, const int32_t *restrict j,
                               const double *restrict x, double inv_r, int64_t capacity,
