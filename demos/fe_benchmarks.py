@@ -32,11 +32,8 @@ def run_all(quick=False):
         "cylinder": lambda: demo_cylinder.run(*cylinder, progress=False),
         "cylinder_mpm": lambda: demo_cylinder.run_mpm(*cylinder_mpm, progress=False),
         "footing_cohesive": lambda: demo_footing.run("cohesive", **footing, progress=False),
-        # Rigid walls (B wide on any mesh), undamped (the local damping drags the soil flowing past
-        # the footing), pushed 50 mm, past the FE's plateau: the protocol that converges with the
-        # mesh (docs/numerics.md).
         "footing_cohesive_mpm": lambda: demo_footing.run_mpm(
-            "cohesive", **footing_mpm, settlement=0.05, damping=0.0, footing="walls", progress=False
+            "cohesive", **footing_mpm, **demo_footing.BENCHMARK_MPM["cohesive"], progress=False
         ),
         "footing_frictional": lambda: demo_footing.run("frictional", **footing, progress=False),
         "footing_frictional_mpm": lambda: demo_footing.run_mpm("frictional", **footing_mpm, progress=False),

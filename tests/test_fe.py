@@ -104,7 +104,7 @@ def test_footing_command_line_quick(tmp_path, monkeypatch, capsys):
     load("demo_footing").main()
     saved = json.loads((tmp_path / "footing_cohesive.json").read_text())
     assert saved["mpm"]["soil"] == "cohesive" and saved["fe"]["failed_at"] is None
-    assert saved["mpm"]["q_10_over_c"] is None  # a push of 3 cm does not reach 0.1 B
+    assert saved["mpm"]["q_10_over_c"] is None  # a push of 5 cm does not reach 0.1 B
     row = {"h": 0.1, "ppc": 1, "stress": "cell", **{k: saved["mpm"][k] for k in ("q_10_over_c", "error_10")}}
     row.update(speed=3e-4, courant=0.5, q_u_over_c=5.4, error=0.05, plateau_spread=0.041)
     line = "| 100 | 1 | `cell` | 0.0003 | 0.5 | — | — | 5.40 | +5.0 % | 4.1 % |"
