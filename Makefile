@@ -5,7 +5,7 @@ PY        := $(VENV)/bin/python
 PY_PYPI   := $(VENV_PYPI)/bin/python
 PYTEST_ARGS ?=
 MPI_RANKS ?= 2
-MPI_TESTS := tests/test_parallel.py tests/test_walls.py
+MPI_TESTS := tests/test_parallel.py tests/test_walls.py tests/test_aggregation.py
 
 .PHONY: demo docs docker conda test test-pypi test-mpi test-mpi-pypi bench lint paraview-check setup setup-pypi clean
 

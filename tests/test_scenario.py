@@ -56,6 +56,7 @@ law = "gradient"
 [solver]
 stress = "node"
 quadrature = "cells"
+light_nodes = "tied"
 
 [time]
 end = -1.0
@@ -83,6 +84,7 @@ def test_every_problem_is_reported_with_its_toml_path(tmp_path):
         "time.end: must be > 0 s, got -1.0",
         'solver.stress: must be one of "cell", "particle", got "node"',
         'solver.quadrature: must be one of "particle", "cell", got "cells"',
+        'solver.light_nodes: must be one of "own", "aggregate", got "tied"',
         'events[0].remove_walls: no wall named "gate" (walls: floor)',
     ]
     assert sorted(errors) == sorted(expected)

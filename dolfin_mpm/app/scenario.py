@@ -33,7 +33,15 @@ from dolfin_mpm.core.grid import Grid
 from dolfin_mpm.core.particles import Sink
 from dolfin_mpm.core.seeding import geostatic_stress, reference_points, seed
 from dolfin_mpm.core.walls import RigidWall
-from dolfin_mpm.explicit.options import INTEGERS, QUADRATURE, SCHEMES, STRESS, VOLUMETRIC, Options
+from dolfin_mpm.explicit.options import (
+    INTEGERS,
+    LIGHT_NODES,
+    QUADRATURE,
+    SCHEMES,
+    STRESS,
+    VOLUMETRIC,
+    Options,
+)
 from dolfin_mpm.explicit.solver import Solver
 from dolfin_mpm.io import xdmf
 from dolfin_mpm.io.groups import read_groups
@@ -78,6 +86,7 @@ _SOLVER = {
     "volumetric": ("string", Options.volumetric, VOLUMETRIC),
     "stress": ("string", Options.stress, STRESS),
     "quadrature": ("string", Options.quadrature, QUADRATURE),
+    "light_nodes": ("string", Options.light_nodes, LIGHT_NODES),
     **{
         name: ("integer" if name in INTEGERS else "number", p.default, p.range)
         for name, p in parameters(Options).items()

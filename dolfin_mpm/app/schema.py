@@ -117,6 +117,8 @@ DESCRIPTIONS = {
     "solver.stress": "stress a particle carries into the next step: its cell's mean or its own",
     "solver.quadrature": "how the internal force integrates each cell: over the particles, or over the "
     "area of each cell the material fills",
+    "solver.light_nodes": "nodes whose own stable step is below the step (in patches that hold little "
+    'material): solved as the others, or tied to their neighbours ("aggregate")',
     "solver.flip": "FLIP fraction of the particle velocity update [-] (1: pure FLIP, 0: PIC)",
     "solver.damping": "local non-viscous (Cundall) damping factor [-]",
     "solver.courant": "Courant factor of the automatic time step [-]",

@@ -1,5 +1,6 @@
 """The background grid: a DOLFINx mesh, its P1 spaces and the nodal fields of one MPM step."""
 
+import functools
 from collections.abc import Callable
 
 import numpy as np
@@ -24,7 +25,8 @@ class Grid:
         V, Q: vector and scalar P1 spaces.
         mass, momentum, f_ext, f_int, f_contact, velocity, acceleration: nodal Functions
             [kg, kg m/s, N, N, N, m/s, m/s^2] (per metre of depth in 2D).
-        scratch: a scalar nodal Function for other sums (the walls' shares of the mass).
+        scratch, scratch_vector: a scalar and a vector nodal Function for other sums (the walls'
+            shares of the mass, the aggregated nodes').
         cell_dofs: nodes of each cell, ``shape=(num_cells, gdim + 1)``.
         num_owned_cells: cells this rank owns; they come first, then the ghosts.
         cell_owner: rank owning each local cell, ``shape=(num_cells,)``.
@@ -80,7 +82,8 @@ class Grid:
         self.f_contact = fem.Function(self.V, name="f_contact")
         self.velocity = fem.Function(self.V, name="velocity")
         self.acceleration = fem.Function(self.V, name="acceleration")
-        self.scratch = fem.Function(self.Q, name="scratch")  # assembly buffer of nodal sums
+        self.scratch = fem.Function(self.Q, name="scratch")  # assembly buffers of nodal sums
+        self.scratch_vector = fem.Function(self.V, name="scratch_vector")
 
         # Affine map x = x0 + J xi per cell; barycentric gradients are constant in a cell.
         X = msh.geometry.x[geom_dofs, : self.gdim]  # (num_cells, gdim+1, gdim)
@@ -160,6 +163,22 @@ class Grid:
         if not self._serial:
             x.scatter_forward()
         return a
+
+    @functools.cached_property
+    def grad_N_norms(self) -> np.ndarray:
+        """``|grad N|`` of each cell's nodes [1/m], ``shape=(num_cells, gdim + 1)``."""
+        return np.sqrt((self.grad_N**2).sum(axis=2))
+
+    @functools.cached_property
+    def node_neighbours(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each local node's neighbours through the local cells, CSR ``(indptr, indices)``, ascending."""
+        dofs = self.cell_dofs
+        k = dofs.shape[1]
+        a, b = np.repeat(dofs, k, axis=1).ravel(), np.tile(dofs, (1, k)).ravel()  # a cell's node pairs
+        pairs = np.unique(np.stack([a[a != b], b[a != b]], axis=1), axis=0)
+        indptr = np.zeros(self.num_nodes + 1, dtype=np.int64)
+        np.cumsum(np.bincount(pairs[:, 0], minlength=self.num_nodes), out=indptr[1:])
+        return indptr, pairs[:, 1].copy()
 
     def nodes_where(self, predicate: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
         """Nodes whose coordinates satisfy ``predicate(x)``, ``x.shape=(3, num_points)``."""

@@ -6,7 +6,7 @@ import numpy as np
 
 from dolfin_mpm.params import check_fields, parameter
 
-__all__ = ["INTEGERS", "QUADRATURE", "SCHEMES", "STRESS", "VOLUMETRIC", "Options"]
+__all__ = ["INTEGERS", "LIGHT_NODES", "QUADRATURE", "SCHEMES", "STRESS", "VOLUMETRIC", "Options"]
 
 #: Where the velocities that give the strain rate come from: re-mapped momentum (MUSL) or the
 #: nodal solve (USL).
@@ -17,6 +17,8 @@ VOLUMETRIC = ("cell", "nodal")
 STRESS = ("cell", "particle")
 #: How ``R`` integrates each cell (:mod:`dolfin_mpm.core.quadrature`).
 QUADRATURE = ("particle", "cell")
+#: Nodes whose own stable step is below the step: solved as the others, or tied to their neighbours.
+LIGHT_NODES = ("own", "aggregate")
 
 
 #: The options that take whole numbers.
@@ -40,6 +42,10 @@ class Options:
             ``"cell"`` (each cell the material fills integrated over its area, see
             :mod:`dolfin_mpm.core.quadrature`: the silo's choice; it under-integrates dilatant
             flow, ``docs/numerics.md``).
+        light_nodes: ``"own"`` (every active node solved for its own velocity) or
+            ``"aggregate"`` (a node whose own stable step is below the step, in a patch that
+            holds little material, moves with its neighbours, see
+            :mod:`dolfin_mpm.core.aggregation`).
         flip: FLIP fraction of the particle velocity update, in [0, 1] (1 = pure FLIP).
         damping: local non-viscous (Cundall) damping factor, in [0, 1).
         courant: Courant factor of the automatic time step, in (0, 1].
@@ -63,6 +69,7 @@ class Options:
     volumetric: str = "cell"
     stress: str = "cell"
     quadrature: str = "particle"
+    light_nodes: str = "own"
     flip: float = parameter(0.0, 1.0, closed=(True, True), default=1.0)
     damping: float = parameter(0.0, 1.0, closed=(True, False), default=0.0)
     courant: float = parameter(0.0, 1.0, closed=(False, True), default=0.5)
@@ -86,6 +93,8 @@ class Options:
             raise ValueError(f"stress must be 'cell' or 'particle', got {self.stress!r}")
         if self.quadrature not in QUADRATURE:
             raise ValueError(f"quadrature must be 'particle' or 'cell', got {self.quadrature!r}")
+        if self.light_nodes not in LIGHT_NODES:
+            raise ValueError(f"light_nodes must be 'own' or 'aggregate', got {self.light_nodes!r}")
         for name in INTEGERS:
             if not isinstance(getattr(self, name), (int, np.integer)):
                 raise ValueError(f"{name} must be an integer, got {getattr(self, name)!r}")

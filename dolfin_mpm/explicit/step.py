@@ -31,6 +31,7 @@ from mpi4py import MPI
 
 from dolfin_mpm.averaging.complementarity import solve_rates
 from dolfin_mpm.averaging.overstress import solve_overstress
+from dolfin_mpm.core.aggregation import Aggregation, gershgorin_stiffness
 from dolfin_mpm.core.cell_stress import cell_mean_stress
 from dolfin_mpm.core.grid import Grid
 from dolfin_mpm.core.locate import Basis, basis_at, locate
@@ -113,6 +114,8 @@ class Nodal:
         mass_dofs, inv_mass_dofs: ``mass`` and ``inv_mass`` for each component,
             ``shape=(num_nodes * gdim,)``: the nodal solve's arithmetic runs on flat arrays
             (numpy is slow over rows of 2 or 3).
+        aggregation: the light nodes tied to their neighbours, or ``None``; ``mass``,
+            ``momentum`` and ``f_ext`` are then the aggregated ones (0 at the light nodes).
 
     """
 
@@ -124,40 +127,89 @@ class Nodal:
     bcs: list
     mass_dofs: np.ndarray
     inv_mass_dofs: np.ndarray
+    aggregation: Aggregation | None = None
 
     def apply_bcs(self, v: np.ndarray) -> None:
         """Correct nodal velocities ``v`` (``shape=(num_nodes, gdim)``) in place."""
         for bc in self.bcs:
             bc.apply(v)
 
+    def settle(self, v: np.ndarray) -> None:
+        """The boundary conditions on nodal velocities ``v`` (``shape=(num_nodes, gdim)``), in place.
+
+        Light nodes follow their masters as these are after the conditions, then take their
+        own; the conditions leave velocities that meet them as they are, and each wall's
+        corrections of the two passes add up.
+        """
+        self.apply_bcs(v)
+        if self.aggregation is None:
+            return
+        self.aggregation.extend(v)
+        walls = [c for c in self.bcs if isinstance(c, Contact)]
+        first = [c.changes.copy() for c in walls]
+        self.apply_bcs(v)
+        for c, changes in zip(walls, first):
+            c.changes += changes
+
+    def velocity(self, momentum: np.ndarray) -> np.ndarray:
+        """Nodal velocities of (aggregated) momenta, flat as ``mass_dofs``; light nodes from their masters."""
+        v = momentum.ravel() * self.inv_mass_dofs
+        self.extend(v)
+        return v
+
+    def gather(self, f: np.ndarray) -> np.ndarray:
+        """Nodal forces or momenta ``f`` (flat, assembled) with the light nodes' moved to their masters."""
+        if self.aggregation is None:
+            return f
+        return self.aggregation.gather(f.reshape(len(self.mass), -1)).ravel()
+
+    def extend(self, v: np.ndarray) -> None:
+        """Light nodes' velocities from their masters', in place (``v`` flat)."""
+        if self.aggregation is not None:
+            self.aggregation.extend(v.reshape(len(self.mass), -1))
+
 
 # -- stages ----------------------------------------------------------------------------------------
 def p2g(
-    model: Model, P: Particles, basis: Basis, time: float = 0.0, weights: np.ndarray | None = None
+    model: Model,
+    P: Particles,
+    basis: Basis,
+    time: float = 0.0,
+    weights: np.ndarray | None = None,
+    dt: float | None = None,
 ) -> Nodal:
     """Lumped mass, momentum, ``F = m g``, ``R`` and the walls' contacts at the nodes, over ranks.
 
     Moving walls are where they are at ``time`` [s]; ``weights``: factors of the volumes in
-    ``R`` (:mod:`dolfin_mpm.core.quadrature`), ``None``: 1.
+    ``R`` (:mod:`dolfin_mpm.core.quadrature`), ``None``: 1; ``dt`` [s]: the step, which the
+    light nodes are found for (``options.light_nodes = "aggregate"``).
     """
     grid = model.grid
     volume = P.volume if weights is None else P.volume * weights
     m, momentum, f_int = particles_to_grid(basis, P.mass, P.v, P.sigma, volume)
     m = grid.assemble(grid.mass, m)
     momentum = grid.assemble(grid.momentum, momentum)
-    f_ext = grid.f_ext.x.array.reshape(-1, grid.gdim)
-    for c in range(grid.gdim):  # from the assembled mass
-        f_ext[:, c] = m * model.gravity[c]
     f_int = grid.assemble(grid.f_int, f_int)
     m_max = max_over_ranks(grid.comm, m.max() if m.size else 0.0)
     active = m > model.options.mass_tol * m_max
+    bcs = contacts(model.bcs, grid, P.x, P.mass, basis, m, time)
+    aggregation = None
+    if model.options.light_nodes == "aggregate":
+        modulus = np.array([mat.rho * mat.p_wave_speed() ** 2 for mat in model.materials])[P.material]
+        stiffness = gershgorin_stiffness(grid, basis, P.volume * modulus)
+        held = np.concatenate([np.asarray(bc.nodes, dtype=np.int64) for bc in bcs] + [np.zeros(0, np.int64)])
+        aggregation = Aggregation.of(grid, m, stiffness, active, dt, held)
+    if aggregation is not None:  # the light nodes' mass and momentum on their masters
+        m, momentum = aggregation.gather(m), aggregation.gather(momentum)
+        active = m > model.options.mass_tol * m_max
+    f_ext = grid.f_ext.x.array.reshape(-1, grid.gdim)
+    for c in range(grid.gdim):  # from the assembled mass
+        f_ext[:, c] = m * model.gravity[c]
     inv_m = np.zeros_like(m)
     inv_m[active] = 1.0 / m[active]
-    bcs = contacts(model.bcs, grid, P.x, P.mass, basis, m, time)
     f_int = f_int.ravel().copy()
-    return Nodal(
-        m, inv_m, momentum, grid.f_ext.x.array, f_int, bcs, _per_dof(m, grid.gdim), _per_dof(inv_m, grid.gdim)
-    )
+    per_dof = _per_dof(m, grid.gdim), _per_dof(inv_m, grid.gdim)
+    return Nodal(m, inv_m, momentum, grid.f_ext.x.array, f_int, bcs, *per_dof, aggregation)
 
 
 def nodal_solve(model: Model, nodal: Nodal, R: np.ndarray, dt: float) -> tuple[np.ndarray, ...]:
@@ -174,17 +226,17 @@ def nodal_solve(model: Model, nodal: Nodal, R: np.ndarray, dt: float) -> tuple[n
     """
     gdim, damping = model.grid.gdim, model.options.damping
     inv_m, m = nodal.inv_mass_dofs, nodal.mass_dofs  # flat, as the nodal arrays below
-    v = nodal.momentum.ravel() * inv_m
-    f = nodal.f_ext - R
+    v = nodal.velocity(nodal.momentum)
+    f = nodal.gather(nodal.f_ext - R)
     v_trial = v + dt * f * inv_m
     v_new = v_trial.copy()
-    nodal.apply_bcs(v_new.reshape(-1, gdim))
+    nodal.settle(v_new.reshape(-1, gdim))
     f_contact = m * (v_new - v_trial) / dt
     reactions = {w: f for c in nodal.bcs if isinstance(c, Contact) for w, f in c.forces(dt).items()}
     if damping > 0.0:
         f_out = f + f_contact
         v_new = v + dt * (f_out - damping * np.abs(f_out) * np.sign(v)) * inv_m
-        nodal.apply_bcs(v_new.reshape(-1, gdim))
+        nodal.settle(v_new.reshape(-1, gdim))
     nodal_field = lambda a: a.reshape(-1, gdim)  # noqa: E731
     return nodal_field(v_new), nodal_field((v_new - v) / dt), nodal_field(f_contact), reactions
 
@@ -216,8 +268,10 @@ def g2p(
         basis, v_node, a_node, P.v, dt, model.options.flip, P.mass if musl else None
     )
     if musl:
-        v_node = (grid.assemble(grid.velocity, momenta).ravel() * nodal.inv_mass_dofs).reshape(-1, grid.gdim)
-        nodal.apply_bcs(v_node)
+        v_node = nodal.velocity(nodal.gather(grid.assemble(grid.velocity, momenta).ravel())).reshape(
+            -1, grid.gdim
+        )
+        nodal.settle(v_node)
     L = gradient(basis, v_node)
     if model.options.volumetric == "nodal":
         L = nodal_volumetric(grid, basis, L, P.volume, lumped)
@@ -372,7 +426,7 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         timer.lap("quadrature")
     elif lumped is not None:
         timer.lap("g2p")  # the nodal volumetric rate's weights
-    nodal = p2g(model, P, basis, state.time, weights)
+    nodal = p2g(model, P, basis, state.time, weights, dt)
     timer.lap("p2g")
     if average is not None:
         average.update(P.x[:, : grid.gdim], P.volume, P.id)
