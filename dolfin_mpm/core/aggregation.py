@@ -57,10 +57,10 @@ class Aggregation:
 
     """
 
-    def __init__(self, grid: Grid, light: np.ndarray, ties: sparse.csr_matrix):
-        ties = ties.tocoo()
-        self.grid, self.light = grid, light
-        self.rows, self.masters, self.shares = ties.row, ties.col, ties.data
+    def __init__(
+        self, grid: Grid, light: np.ndarray, rows: np.ndarray, masters: np.ndarray, shares: np.ndarray
+    ):
+        self.grid, self.light, self.rows, self.masters, self.shares = grid, light, rows, masters, shares
 
     @classmethod
     def of(
@@ -91,21 +91,22 @@ class Aggregation:
             return None
         indptr, indices = grid.node_neighbours
         counts = indptr[idx + 1] - indptr[idx]
-        rows = np.repeat(np.arange(idx.size), counts)  # the light nodes' neighbours, pair by pair
-        cols = indices[np.repeat(indptr[idx] - np.cumsum(counts) + counts, counts) + np.arange(counts.sum())]
+        pair_row = np.repeat(np.arange(idx.size), counts)  # the light nodes' neighbours, pair by pair
+        starts = np.repeat(indptr[idx] - np.cumsum(counts) + counts, counts)
+        neighbour = indices[starts + np.arange(counts.sum())]
+        rows, cols = pair_row, neighbour
         weight = np.where(active & ~light, mass, 0.0)[cols]
         total = np.bincount(rows, weights=weight, minlength=idx.size)
         master = weight > 0.0
-        T = sparse.csr_matrix(
-            (weight[master] / total[rows[master]], (rows[master], cols[master])), shape=(idx.size, n)
-        )
+        rows, cols, shares = rows[master], cols[master], weight[master] / total[rows[master]]
         if np.all(total > 0.0):
-            return cls(grid, idx, T)
+            return cls(grid, idx, rows, cols, shares)
+        T = sparse.csr_matrix((shares, (rows, cols)), shape=(idx.size, n))
         position = np.full(n, -1)
         position[idx] = np.arange(idx.size)
-        inner = position[cols] >= 0
+        inner = position[neighbour] >= 0
         among = sparse.csr_matrix(
-            (np.ones(inner.sum()), (rows[inner], position[cols[inner]])), shape=(idx.size,) * 2
+            (np.ones(inner.sum()), (pair_row[inner], position[neighbour[inner]])), shape=(idx.size,) * 2
         )
         for _ in range(ROUNDS):
             tied = np.diff(T.indptr) > 0
@@ -129,7 +130,8 @@ class Aggregation:
         T = T.tocsr()
         T.eliminate_zeros()
         tied = np.diff(T.indptr) > 0
-        return cls(grid, idx[tied], T[tied])
+        ties = T[tied].tocoo()
+        return cls(grid, idx[tied], ties.row, ties.col, ties.data)
 
     def gather(self, a: np.ndarray) -> np.ndarray:
         """Nodal values ``a`` with each light node's moved to its masters in their shares.

@@ -195,7 +195,8 @@ def p2g(
     bcs = contacts(model.bcs, grid, P.x, P.mass, basis, m, time)
     aggregation = None
     if model.options.light_nodes == "aggregate":
-        modulus = np.array([mat.rho * mat.p_wave_speed() ** 2 for mat in model.materials])[P.material]
+        moduli = [mat.rho * mat.p_wave_speed() ** 2 for mat in model.materials]  # M = rho c_p^2 [Pa]
+        modulus = moduli[0] if len(moduli) == 1 else np.array(moduli)[P.material]
         stiffness = gershgorin_stiffness(grid, basis, P.volume * modulus)
         held = np.concatenate([np.asarray(bc.nodes, dtype=np.int64) for bc in bcs] + [np.zeros(0, np.int64)])
         aggregation = Aggregation.of(grid, m, stiffness, active, dt, held)
