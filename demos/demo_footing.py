@@ -58,6 +58,8 @@ MPM_SETTLEMENT = {"cohesive": 0.03, "frictional": 0.06, "frictional-associated":
 #: triangles hold little material: with a Courant number of 0.5 their velocities grow without
 #: bound on cells of 5 cm and less (a particle's volume reaches zero at 13-23 cm of settlement).
 #: At 0.25 the pushes on 10 and 5 cm cells end; on 2.5 cm cells with four points it stops at 27 cm.
+#: Tied to their neighbours (``light_nodes="aggregate"``) such nodes hold at 0.5 on 5 cm cells
+#: too (``docs/numerics.md``); the benchmark's numbers are still those of 0.25 without ties.
 MPM_OPTIONS = {"frictional-associated": {"courant": 0.25}}
 #: How the benchmark and the command line run each soil's MPM footing where it differs from
 #: :func:`run_mpm`'s defaults: the cohesive footing undamped (the local damping drags the soil
