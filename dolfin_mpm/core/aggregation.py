@@ -94,11 +94,11 @@ class Aggregation:
         pair_row = np.repeat(np.arange(idx.size), counts)  # the light nodes' neighbours, pair by pair
         starts = np.repeat(indptr[idx] - np.cumsum(counts) + counts, counts)
         neighbour = indices[starts + np.arange(counts.sum())]
-        rows, cols = pair_row, neighbour
-        weight = np.where(active & ~light, mass, 0.0)[cols]
-        total = np.bincount(rows, weights=weight, minlength=idx.size)
+        weight = np.where(active & ~light, mass, 0.0)[neighbour]
+        total = np.bincount(pair_row, weights=weight, minlength=idx.size)
         master = weight > 0.0
-        rows, cols, shares = rows[master], cols[master], weight[master] / total[rows[master]]
+        rows, cols = pair_row[master], neighbour[master]
+        shares = weight[master] / total[rows]
         if np.all(total > 0.0):
             return cls(grid, idx, rows, cols, shares)
         T = sparse.csr_matrix((shares, (rows, cols)), shape=(idx.size, n))
