@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 from conftest import rectangle
+from dolfinx import mesh
 from mpi4py import MPI
 from test_grid import random_points
 
@@ -14,8 +15,10 @@ from dolfin_mpm.explicit.step import p2g
 def scattered(grid, n=60, seed=5):
     """A sparse cloud of stressed, moving points: many nodes hold a sliver of a point's mass."""
     rng = np.random.default_rng(seed)
-    x = random_points(grid, n, seed=seed) * np.r_[0.8, 0.8, 0] + np.r_[0.1, 0.1, 0]
-    P = dm.Particles(x, rng.normal(size=(n, 2)), np.full(n, 0.1), np.full(n, 1e-4))
+    g = grid.gdim
+    inner = np.r_[[1.0] * g, [0.0] * (3 - g)]  # the cloud keeps off the boundary
+    x = random_points(grid, n, seed=seed) * 0.8 * inner + 0.1 * inner
+    P = dm.Particles(x, rng.normal(size=(n, g)), np.full(n, 0.1), np.full(n, 1e-4))
     sigma = rng.normal(scale=1e3, size=(n, 3, 3))
     P.sigma = sigma + sigma.transpose(0, 2, 1)
     cells, _ = locate(grid, P.x, P.cell)
@@ -44,9 +47,15 @@ def test_light_nodes_move_their_mass_and_momentum_to_masters_in_shares(unit_grid
     assert np.allclose(v, [0.3, -0.7], rtol=1e-14)
 
 
-def test_aggregated_steps_conserve_momentum(unit_grid):
+@pytest.mark.parametrize("gdim", [2, 3])
+def test_aggregated_steps_conserve_momentum(unit_grid, gdim):
+    if gdim == 3:
+        unit_grid = dm.Grid(mesh.create_unit_cube(MPI.COMM_WORLD, 4, 4, 4))
     P = scattered(unit_grid)
     solver = dm.Solver(unit_grid, P, dm.LinearElastic(1e6, 0.3, 1000.0), courant=0.5, light_nodes="aggregate")
+    cells, N = locate(unit_grid, P.x, P.cell)
+    tied = p2g(solver.model, P, basis_at(unit_grid, cells, N), dt=solver.state.dt).aggregation
+    assert solver.comm.allreduce(0 if tied is None else len(tied.light), MPI.SUM) > 0
     p0 = solver.total_momentum()
     for _ in range(20):
         solver.step()
