@@ -154,7 +154,8 @@ class Nodal:
     def velocity(self, momentum: np.ndarray) -> np.ndarray:
         """Nodal velocities of (aggregated) momenta, flat as ``mass_dofs``; light nodes from their masters."""
         v = momentum.ravel() * self.inv_mass_dofs
-        self.extend(v)
+        if self.aggregation is not None:
+            self.aggregation.extend(v.reshape(len(self.mass), -1))
         return v
 
     def gather(self, f: np.ndarray) -> np.ndarray:
@@ -162,11 +163,6 @@ class Nodal:
         if self.aggregation is None:
             return f
         return self.aggregation.gather(f.reshape(len(self.mass), -1)).ravel()
-
-    def extend(self, v: np.ndarray) -> None:
-        """Light nodes' velocities from their masters', in place (``v`` flat)."""
-        if self.aggregation is not None:
-            self.aggregation.extend(v.reshape(len(self.mass), -1))
 
 
 # -- stages ----------------------------------------------------------------------------------------
