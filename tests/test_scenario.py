@@ -57,6 +57,7 @@ law = "gradient"
 stress = "node"
 quadrature = "cells"
 light_nodes = "tied"
+damping_mean_time = 0.0
 
 [time]
 end = -1.0
@@ -85,6 +86,7 @@ def test_every_problem_is_reported_with_its_toml_path(tmp_path):
         'solver.stress: must be one of "cell", "particle", got "node"',
         'solver.quadrature: must be one of "particle", "cell", got "cells"',
         'solver.light_nodes: must be one of "own", "aggregate", got "tied"',
+        "solver.damping_mean_time: must be > 0 s, got 0.0",
         'events[0].remove_walls: no wall named "gate" (walls: floor)',
     ]
     assert sorted(errors) == sorted(expected)

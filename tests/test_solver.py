@@ -124,7 +124,9 @@ def test_non_finite_state_stops_with_step_and_particle():
 @pytest.mark.parametrize(
     "kwargs, name",
     [({"dt": 0.0}, "dt"), ({"dt": -1.0}, "dt"), ({"courant": 1.5}, "courant"), ({"flip": 1.2}, "flip"),
-     ({"damping": 1.0}, "damping"), ({"scheme": "USF"}, "scheme"), ({"on_exit": "drain"}, "on_exit"),
+     ({"damping": 1.0}, "damping"), ({"damping_mean_time": 0.0}, "damping_mean_time"),
+     ({"damping_mean_time": float("nan")}, "damping_mean_time"), ({"scheme": "USF"}, "scheme"),
+     ({"on_exit": "drain"}, "on_exit"),
      ({"gravity": (0, 0, 1)}, "gravity")],
 )  # fmt: skip
 def test_bad_solver_input(kwargs, name):

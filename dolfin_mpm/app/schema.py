@@ -121,6 +121,8 @@ DESCRIPTIONS = {
     'material): solved as the others, or tied to their neighbours ("aggregate")',
     "solver.flip": "FLIP fraction of the particle velocity update [-] (1: pure FLIP, 0: PIC)",
     "solver.damping": "local non-viscous (Cundall) damping factor [-]",
+    "solver.damping_mean_time": "the damping opposes each node's departure from its running mean "
+    "velocity over this time [s], leaving steady flow undamped (default: the velocity itself)",
     "solver.courant": "Courant factor of the automatic time step [-]",
     "solver.dt": "time step [s] (default: courant * smallest cell height / (p-wave speed + particle "
     "speed), shortened to a whole fraction of output.interval)",

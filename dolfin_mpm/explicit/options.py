@@ -48,6 +48,11 @@ class Options:
             :mod:`dolfin_mpm.core.aggregation`).
         flip: FLIP fraction of the particle velocity update, in [0, 1] (1 = pure FLIP).
         damping: local non-viscous (Cundall) damping factor, in [0, 1).
+        damping_mean_time: ``None``: the damping opposes each node's velocity (Cundall's local
+            damping); a time [s], > 0: it opposes the velocity's departure from its running
+            mean over that time at the node, so that a steady flow past the grid is left
+            undamped while oscillations about it are damped. Take several times the time a
+            p-wave takes to cross the model, and much less than the loading's (``docs/numerics.md``).
         courant: Courant factor of the automatic time step, in (0, 1].
         dt: time step [s], > 0; ``None``: ``courant * h_min / (max p-wave speed + max particle
             speed at the start)``.
@@ -72,6 +77,7 @@ class Options:
     light_nodes: str = "own"
     flip: float = parameter(0.0, 1.0, closed=(True, True), default=1.0)
     damping: float = parameter(0.0, 1.0, closed=(True, False), default=0.0)
+    damping_mean_time: float | None = parameter(0.0, np.inf, "s", default=None)
     courant: float = parameter(0.0, 1.0, closed=(False, True), default=0.5)
     dt: float | None = parameter(0.0, np.inf, "s", default=None)
     mass_tol: float = parameter(0.0, 1.0, closed=(True, False), default=1e-10)

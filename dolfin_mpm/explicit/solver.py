@@ -196,18 +196,22 @@ class Solver:
     def rebalance(self) -> bool:
         """Deal the mesh's cells to the ranks anew by the particles they hold (collective).
 
-        The particles, the nodal boundary conditions and the loop's history of ``R`` follow
-        the new partition (:mod:`dolfin_mpm.parallel.rebalance`); the results are those of
-        the old partition to round-off. Returns whether the grid changed (never on one rank).
+        The particles, the nodal boundary conditions, the loop's history of ``R`` and the
+        damping's mean velocities follow the new partition (:mod:`dolfin_mpm.parallel.rebalance`);
+        the results are those of the old partition to round-off. Returns whether the grid
+        changed (never on one rank).
         """
         if self.comm.size == 1:
             return False
         self.timer.start()
         grid, owner = repartition(self.grid, self.particles, self.partition_axes)
         if grid is not None:
-            self.state.R_changes = move_to(self.grid, grid, owner, self.particles, self.state.R_changes)
+            state = self.state
+            state.R_changes, state.v_mean = move_to(
+                self.grid, grid, owner, self.particles, state.R_changes, state.v_mean
+            )
             self._use(grid)
-            self.state.repartitions += 1
+            state.repartitions += 1
         self.timer.lap("rebalance")
         self.state.balanced = self.imbalance()
         return grid is not None

@@ -33,6 +33,9 @@ class State:
         R_changes: changes of the owned internal forces ``R`` made by the last steps' stress
             updates, latest first, each ``shape=(owned nodes * gdim,)`` (the fixed-point loop
             extrapolates them).
+        v_mean: each owned node's running mean velocity [m/s] that the damping acts against
+            (``options.damping_mean_time``), ``shape=(owned nodes * gdim,)``, NaN where the
+            node held no material in the last step; ``None``: not kept.
         fixed_point: the loop's counters, :data:`FIXED_POINT_STATISTICS`.
         dissipated: the (visco)plastic work [J] of the stress updates on this rank since the
             start (:func:`dolfin_mpm.explicit.energy.plastic_work`).
@@ -54,6 +57,7 @@ class State:
     step: int = 0
     average: object | None = None
     R_changes: list[np.ndarray] = field(default_factory=list)
+    v_mean: np.ndarray | None = None
     fixed_point: dict[str, int] = field(default_factory=lambda: dict.fromkeys(FIXED_POINT_STATISTICS, 0))
     dissipated: float = 0.0
     migrated: int = 0
@@ -83,6 +87,7 @@ class State:
             "sinks": sinks,
             "nonlocal": self.average.state() if self.average is not None else {},
             "R_changes": np.array(self.R_changes, dtype=np.float64).reshape(len(self.R_changes), owned),
+            "v_mean": np.array([] if self.v_mean is None else [self.v_mean], np.float64).reshape(-1, owned),
             "dissipated": np.array(self.dissipated),
         }
 
@@ -113,6 +118,8 @@ class State:
         if self.average is not None:
             self.average.restore(tree["nonlocal"])
         self.R_changes = list(np.array(tree["R_changes"], dtype=np.float64))
+        v_mean = np.array(tree.get("v_mean", np.zeros((0, 0))), dtype=np.float64)  # not in earlier versions
+        self.v_mean = v_mean[0].copy() if len(v_mean) else None
         self.dissipated = float(tree.get("dissipated", 0.0))
         self.time, self.step, self.dt = float(scalars["time"]), int(scalars["step"]), float(scalars["dt"])
         self.balanced = float(scalars.get("balanced", 1.0))  # not in the checkpoints of earlier versions

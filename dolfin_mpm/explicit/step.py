@@ -209,12 +209,16 @@ def p2g(
     return Nodal(m, inv_m, momentum, grid.f_ext.x.array, f_int, bcs, *per_dof, aggregation)
 
 
-def nodal_solve(model: Model, nodal: Nodal, R: np.ndarray, dt: float) -> tuple[np.ndarray, ...]:
+def nodal_solve(
+    model: Model, nodal: Nodal, R: np.ndarray, dt: float, v_mean: np.ndarray | None = None
+) -> tuple[np.ndarray, ...]:
     """Nodal velocities at the end of the step from ``M a = F + F_c - R``.
 
     ``F_c`` is the force the boundary conditions need against ``F - R`` (the reaction).
     Damping then acts on the out-of-balance force ``F + F_c - R``, so that it neither enters
-    the reaction nor resists the motion a boundary condition prescribes.
+    the reaction nor resists the motion a boundary condition prescribes: ``-damping |f|``
+    against the sign of the velocity (Cundall), or of its departure from ``v_mean``, the
+    nodes' running mean velocities (flat as ``mass_dofs``; NaN: none yet, the node's velocity).
 
     Returns:
         The velocity, the acceleration and ``F_c``, each ``shape=(num_nodes, gdim)``, and each
@@ -232,7 +236,8 @@ def nodal_solve(model: Model, nodal: Nodal, R: np.ndarray, dt: float) -> tuple[n
     reactions = {w: f for c in nodal.bcs if isinstance(c, Contact) for w, f in c.forces(dt).items()}
     if damping > 0.0:
         f_out = f + f_contact
-        v_new = v + dt * (f_out - damping * np.abs(f_out) * np.sign(v)) * inv_m
+        swing = v if v_mean is None else v - np.where(np.isnan(v_mean), v, v_mean)
+        v_new = v + dt * (f_out - damping * np.abs(f_out) * np.sign(swing)) * inv_m
         nodal.settle(v_new.reshape(-1, gdim))
     nodal_field = lambda a: a.reshape(-1, gdim)  # noqa: E731
     return nodal_field(v_new), nodal_field((v_new - v) / dt), nodal_field(f_contact), reactions
@@ -450,8 +455,14 @@ def advance(model: Model, state: State, timer: Timer) -> None:
     applied = None
     if law is not None and law.iterative:
         two_G = constitutive.two_G(P)
+    v_mean = None  # the damping's mean velocities at this rank's nodes, ghosts too
+    if options.damping_mean_time is not None:
+        v_mean = np.full(nodal.mass_dofs.shape, np.nan)
+        if state.v_mean is not None:
+            v_mean = grid.refresh_ghosts(grid.scratch_vector, state.v_mean).copy()
     for k in range(1, (1 if average is None else options.fixed_point_max_iter) + 1):
-        v_node, a_node, f_contact, reactions = nodal_solve(model, nodal, R_node, dt)
+        v_node, a_node, f_contact, reactions = nodal_solve(model, nodal, R_node, dt, v_mean)
+        v_solved = v_node
         timer.lap("nodal_solve")
         v, dx, L, v_node = g2p(model, P, basis, nodal, v_node, a_node, dt, lumped)
         timer.lap("g2p")
@@ -525,6 +536,10 @@ def advance(model: Model, state: State, timer: Timer) -> None:
         grid.refresh_ghosts(grid.f_int, R)  # the R of the stresses the step ends with
         if law.iterative:
             P.state[CORRECTION] = guess
+    if v_mean is not None:
+        owned = grid.num_owned_nodes * grid.gdim
+        mean = _running_mean(v_mean, v_solved.ravel(), nodal.inv_mass_dofs, dt, options.damping_mean_time)
+        state.v_mean = mean[:owned]
     state.reactions = reactions
     state.dissipated += plastic_work(constitutive.groups, trials, sigma, volume)
     P.sigma, P.volume = sigma, volume
@@ -549,6 +564,18 @@ def _per_dof(a: np.ndarray, gdim: int) -> np.ndarray:
     for c in range(gdim):  # by columns: np.repeat is slow over a few components
         out[:, c] = a
     return out.ravel()
+
+
+def _running_mean(v_mean: np.ndarray, v: np.ndarray, inv_mass: np.ndarray, dt: float, time: float):
+    """The nodes' running mean velocities after a step of ``dt`` [s] that ended with velocities ``v``.
+
+    Exponential over ``time`` [s] (the mean of a velocity held that long is ``1 - 1/e`` of the
+    way to it); a node new to the material starts from its velocity, one without material has
+    none (NaN). All flat as ``Nodal.mass_dofs``.
+    """
+    start = np.where(np.isnan(v_mean), v, v_mean)
+    share = -math.expm1(-dt / time)
+    return np.where(inv_mass > 0.0, start + share * (v - start), np.nan)
 
 
 def _after(time: float, dt: float) -> float:

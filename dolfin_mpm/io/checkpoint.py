@@ -37,6 +37,9 @@ __all__ = ["FORMAT", "RESUMABLE", "CheckpointError", "read", "restore", "scenari
 FORMAT = 6
 #: Scenario keys a resumed run may change (the end time and the output, not the physics).
 RESUMABLE = ("time.end", "output.")
+#: The state's arrays of owned nodes, rows of ``owned nodes * gdim`` (:meth:`State.tree
+#: <dolfin_mpm.explicit.state.State.tree>`): on another number of ranks, each rank takes its nodes' columns.
+NODAL = ("R_changes", "v_mean")
 
 
 class CheckpointError(RuntimeError):
@@ -250,7 +253,7 @@ def read(path, comm) -> dict:
     checkpoint's that is its group ``rank<r>``, and after a run that dealt its cells anew rank 0
     also gets their ``partition``. On another number, rank r takes the groups r, r + N, ...
     (N ranks) merged into one part (:func:`_merged`: the particles and the sinks' and the
-    dissipation's totals), and every rank all nodes with their ``R_changes``: :func:`restore`
+    dissipation's totals), and every rank all nodes with their :data:`NODAL` rows: :func:`restore`
     then hands the particles to the owners of their cells. No rank holds more particles than
     the groups it takes.
 
@@ -310,12 +313,14 @@ def _read_part(f: h5py.File, path, comm) -> dict:
         every = [f[f"rank{r}"] for r in range(written)]  # each checked by the rank that takes it
         if not parts:  # none for this rank: the first's structure without its particles
             g = every[0]
-            keys = ("sinks", "R_changes", "dissipated", "nodes")
+            keys = ("sinks", *(k for k in NODAL if k in g), "dissipated", "nodes")
             parts = [{"particles": _read_tree(g["particles"], rows=0), **_read_tree(g, keys=keys)}]
             parts[0] = _emptied(parts[0])
         part = _merged(parts)
         part["nodes"] = np.concatenate([g["nodes"][()] for g in every])
-        part["R_changes"] = np.concatenate([g["R_changes"][()] for g in every], axis=1)
+        for k in NODAL:
+            if all(k in g for g in every):  # (v_mean is not in the checkpoints of earlier versions)
+                part[k] = np.concatenate([g[k][()] for g in every], axis=1)
     return {"attrs": attrs, "history": history, **part}
 
 
@@ -344,7 +349,11 @@ def _merged(ranks: list[dict]) -> dict:
         "particles": joined([part["particles"] for part in ranks]),
         "sinks": sinks,
         "nonlocal": {},
-        "R_changes": np.concatenate([part["R_changes"] for part in ranks], axis=1),
+        **{
+            k: np.concatenate([part[k] for part in ranks], axis=1)
+            for k in NODAL
+            if all(k in part for part in ranks)
+        },
         "dissipated": np.sum([part["dissipated"] for part in ranks]),
         "nodes": np.concatenate([part["nodes"] for part in ranks]),
         "resharded": True,
@@ -415,7 +424,7 @@ def restore(sim, data: dict) -> None:
         s.deal(partition["cells"], partition["ranks"])
     owned = s.grid.node_x[: s.grid.num_owned_nodes]
     if resharded:
-        data = {**data, "R_changes": _owned_rows(data, owned, s.grid.gdim, s.comm)}
+        data = {**data, **_owned_rows(data, owned, s.grid.gdim, s.comm)}
     elif not s.comm.allreduce(np.array_equal(data["nodes"], owned), MPI.LAND):  # on every rank
         raise CheckpointError(
             "the checkpoint does not fit the scenario (the grid's nodes, or their partition, differ)"
@@ -446,8 +455,8 @@ def restore(sim, data: dict) -> None:
             s.rebalance()
 
 
-def _owned_rows(data: dict, owned: np.ndarray, gdim: int, comm) -> np.ndarray:
-    """The columns of ``R_changes`` (all nodes of the checkpoint) of this rank's ``owned`` nodes.
+def _owned_rows(data: dict, owned: np.ndarray, gdim: int, comm) -> dict:
+    """The columns of the :data:`NODAL` rows (all nodes of the checkpoint) of this rank's ``owned`` nodes.
 
     A node is the checkpoint's node within 1e-9 of the mesh's extent: a mesh made on another
     partition may place its nodes differently in the last bits. Raises ``CheckpointError`` on
@@ -459,5 +468,5 @@ def _owned_rows(data: dict, owned: np.ndarray, gdim: int, comm) -> np.ndarray:
     matched = bool(np.all(np.isfinite(distance))) and len(np.unique(rows)) == len(rows)
     if not comm.allreduce(matched, MPI.LAND) or comm.allreduce(len(owned)) != len(nodes):
         raise CheckpointError("the checkpoint does not fit the scenario (the grid's nodes differ)")
-    columns = (rows[:, None] * gdim + np.arange(gdim)).ravel()  # R holds gdim entries per node
-    return np.asarray(data["R_changes"]).reshape(-1, len(nodes) * gdim)[:, columns]
+    columns = (rows[:, None] * gdim + np.arange(gdim)).ravel()  # gdim entries per node
+    return {k: np.asarray(data[k]).reshape(-1, len(nodes) * gdim)[:, columns] for k in NODAL if k in data}

@@ -99,12 +99,15 @@ def renumber(old: Grid, new: Grid, bcs: list) -> None:
 NODAL_FIELDS = ("mass", "momentum", "f_ext", "f_int", "f_contact", "velocity", "acceleration")
 
 
-def move_to(old: Grid, new: Grid, owner: np.ndarray, particles: Particles, R_changes: list) -> list:
+def move_to(
+    old: Grid, new: Grid, owner: np.ndarray, particles: Particles, R_changes: list, v_mean: np.ndarray | None
+) -> tuple[list, np.ndarray | None]:
     """Carry a run's state from grid ``old`` to grid ``new`` of :func:`repartition`.
 
     The particles go to ``owner`` of their cells, then to the owners of the cells they are in
     on ``new``; the last step's :data:`NODAL_FIELDS` are copied node for node; ``R_changes``
-    (each ``shape=(owned nodes * gdim,)`` of ``old``) are returned for ``new``'s.
+    and ``v_mean`` (each ``shape=(owned nodes * gdim,)`` of ``old``, or ``None``) are returned
+    for ``new``'s owned nodes.
     """
     comm = old.comm
     cell = particles.cell
@@ -119,10 +122,14 @@ def move_to(old: Grid, new: Grid, owner: np.ndarray, particles: Particles, R_cha
         width = was.x.array.size // old.num_nodes
         values = was.x.array[: old.num_owned_nodes * width].reshape(old.num_owned_nodes, width)
         new.refresh_ghosts(now, np.concatenate(comm.allgather(values))[rows].ravel())
-    if not R_changes:
-        return []
-    R = np.array(R_changes).reshape(len(R_changes), old.num_owned_nodes, old.gdim)
-    return list(np.concatenate(comm.allgather(R), axis=1)[:, rows].reshape(len(R_changes), -1))
+
+    def moved(arrays: list) -> list:  # rows of owned nodal values, node for node
+        if not arrays:
+            return []
+        a = np.array(arrays).reshape(len(arrays), old.num_owned_nodes, old.gdim)
+        return list(np.concatenate(comm.allgather(a), axis=1)[:, rows].reshape(len(arrays), -1))
+
+    return moved(R_changes), (None if v_mean is None else moved([v_mean])[0])
 
 
 def _owned_rows(old: Grid, new: Grid) -> np.ndarray:
