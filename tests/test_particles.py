@@ -1,9 +1,11 @@
-"""Particle arrays: removal, selection and appending keep every field aligned."""
+"""Particle arrays: removal, selection and appending keep every field aligned; the move finds unsound ones."""
 
 import numpy as np
 import pytest
 
 import dolfin_mpm as dm
+from dolfin_mpm.core.particles import move
+from dolfin_mpm.materials.tensor import component_first, particle_first
 
 
 def make(n, offset=0):
@@ -65,3 +67,33 @@ def test_the_solver_numbers_particles_without_an_id_and_keeps_the_others():
     Q.id[:2] = 5
     with pytest.raises(ValueError, match=r"particles\.id: .* repeat"):
         dm.Solver(grid, Q, mat)
+
+
+@pytest.mark.parametrize("gdim", [2, 3])
+@pytest.mark.parametrize(
+    "spoil", ["none", "stress", "stress_component_first", "velocity", "position", "volume"]
+)
+def test_move_adds_the_displacements_and_finds_every_unsound_particle(gdim, spoil):
+    """The move is ``x += dx`` in the first gdim columns; any non-finite stress component (in
+    either layout), velocity or position, or a volume that is not > 0, makes the particles unsound."""
+    rng = np.random.default_rng(3)
+    n = 37
+    P = dm.Particles(rng.random((n, 3)), rng.normal(size=(n, gdim)), np.ones(n), np.full(n, 0.1))
+    P.sigma = rng.normal(size=(n, 3, 3))
+    if spoil == "stress_component_first":
+        P.sigma = particle_first(np.ascontiguousarray(component_first(P.sigma)))
+    dx = rng.normal(size=(n, gdim))
+    x = P.x.copy()
+    x[:, :gdim] += dx
+    k = 11
+    if spoil.startswith("stress"):
+        P.sigma[k, 2, 1] = np.nan
+    elif spoil == "velocity":
+        P.v[k, -1] = -np.inf
+    elif spoil == "position":
+        dx[k, 0] = np.inf
+        x[k, 0] = np.inf
+    elif spoil == "volume":
+        P.volume[k] = 0.0
+    assert move(P, dx) == (spoil == "none")
+    assert np.array_equal(P.x, x)
