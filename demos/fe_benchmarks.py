@@ -154,7 +154,9 @@ def report(res, path: Path, quick: bool):
         "Davis's estimate. The associated cone dilates: the small-strain FE reaches its plateau "
         "at about 0.1 m of settlement (0.1 B). Its MPM footing (the grid nodes inside it, joined "
         f"as its base sinks) runs on 10 cm cells with {'one particle' if quick else 'four particles'} "
-        f"each, loaded at {'1e-3' if quick else '3e-4'} of the p-wave speed, to 0.3 m. The MPM is "
+        f"each, loaded at {'1e-3' if quick else '3e-4'} of the p-wave speed, to 0.3 m, with the "
+        "nearly empty nodes beside the heave tied to their neighbours (`light_nodes = "
+        '"aggregate"`). The MPM is '
         "a large-deformation method: as the footing sinks into the dilating soil and the heave "
         "rises round it, its load keeps growing past the small-strain plateau, so its failure load "
         "is taken by the 10 % criterion, q at a settlement of 0.1 B. With one particle per "
