@@ -100,7 +100,7 @@ PARTITIONS = ("rebalance", "strips", "dolfinx")
 def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, height=0.3, outlet=0.1, ppc=4,
           shift=0.0, edge_cell=None, edge_zone=0.04, split=(1, 1), comm=MPI.COMM_WORLD,
           partition="rebalance", rebalance=1.05, law="max", m=None, volumetric="nodal", stress="cell",
-          quadrature="cell"):  # fmt: skip
+          quadrature="cell", courant=0.5):  # fmt: skip
     """The silo on a mesh of ``h`` [m]: solver, sinks and the outlet's gate, before settling.
 
     The walls, the bottom plates and the gate are rigid walls as geometry
@@ -137,6 +137,7 @@ def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, he
             (checked every 20 steps); ``"dolfinx"`` keeps DOLFINx's partition. Cuts across
             the flow cost more than an imbalance: particles cross them every step, and each
             crossing rebuilds the non-local halo and pair lists (``docs/parallel.md``).
+        courant: the time step's Courant factor, in (0, 1] (the solver's default 0.5).
 
     Returns:
         ``(solver, gate)``; the gate is a boundary condition in ``solver.bcs``.
@@ -208,7 +209,7 @@ def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, he
     averaging = dm.NonlocalAverage(radius, weight, law=dm.NonlocalLaw(law, m))  # r = 0: the local model
     solver = dm.Solver(
         grid, P, sand, bcs=[*walls, gate], gravity=(0.0, -G), sinks=[sink], averaging=averaging,
-        volumetric=volumetric, stress=stress, quadrature=quadrature,
+        volumetric=volumetric, stress=stress, quadrature=quadrature, courant=courant,
         rebalance=rebalance if partition == "rebalance" else np.inf,
     )  # fmt: skip
     solver.partition_axes = axes
@@ -314,12 +315,12 @@ def settle_and_open(solver, gate, t_settle: float, progress=True) -> float:
 def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, height=0.3, outlet=0.1,
         ppc=4, shift=0.0, edge_cell=None, split=(1, 1), t_end=0.25, t_settle=0.02, output=None,
         interval=0.005, progress=True, comm=MPI.COMM_WORLD, law="max", volumetric="nodal",
-        stress="cell", quadrature="cell", partition="rebalance", m=None):  # fmt: skip
+        stress="cell", quadrature="cell", partition="rebalance", m=None, courant=0.5):  # fmt: skip
     """Settle the fill, open the outlet at t = 0 and discharge until ``t_end`` [s].
 
     Args:
         h, radius, weight, wall_friction, width, height, outlet, ppc, shift, edge_cell, split, comm,
-            law, m, volumetric, stress, quadrature, partition: as for :func:`build`.
+            law, m, volumetric, stress, quadrature, partition, courant: as for :func:`build`.
         t_end: end of the discharge [s].
         t_settle: length of the damped settling phase before the opening [s].
         output: folder for the XDMF series (particles and grid), or ``None``.
@@ -343,7 +344,7 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, heig
     solver, gate = build(
         h, radius, weight, wall_friction, width, height, outlet, ppc, shift, edge_cell, split=split,
         comm=comm, partition=partition, law=law, m=m,
-        volumetric=volumetric, stress=stress, quadrature=quadrature,
+        volumetric=volumetric, stress=stress, quadrature=quadrature, courant=courant,
     )  # fmt: skip
     m0 = solver.total_mass()
     t0 = time.perf_counter()
@@ -377,6 +378,7 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, heig
         "volumetric": volumetric,
         "stress": stress,
         "quadrature": quadrature,
+        "courant": courant,
         "wall_friction": wall_friction,
         "shift": shift,
         "edge_cell": edge_cell,
@@ -596,6 +598,16 @@ STUDIES = {
             ("nodal", "cell", "cell"),
         )
     ],
+    # The time step: the Courant factor halved twice from the default 0.5 (once on h = 2.5 mm).
+    "timestep": [
+        *(
+            dict(h=h, radius=r, courant=c)
+            for h in (0.01, 0.005)
+            for r in (0.0, 5e-3)
+            for c in (0.5, 0.25, 0.125)
+        ),
+        *(dict(h=0.0025, radius=5e-3, courant=c) for c in (0.5, 0.25)),
+    ],
     # The non-local laws with the positive-definite weight beside the local model.
     "laws": [
         *(dict(h=h, radius=0.0) for h in MESHES),
@@ -620,7 +632,7 @@ ARRAYS = (
 
 def run_key(
     h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, shift=0.0, edge_cell=None, split=(1, 1),
-    law="max", m=None, volumetric="nodal", stress="cell", quadrature="cell",
+    law="max", m=None, volumetric="nodal", stress="cell", quadrature="cell", courant=0.5,
 ) -> str:  # fmt: skip
     """Name of a stored run: the study parameters; every other setting is :func:`run`'s default."""
     shifted = f"_shift{shift:g}" if shift else ""
@@ -632,7 +644,8 @@ def run_key(
         + (f"_{stress}-stress" if stress != "cell" else "")
         + (f"_{quadrature}-quadrature" if quadrature != "cell" else "")
     )
-    rest = f"{shifted}{edges}{rule}{numerics}"
+    step = f"_courant{courant:g}" if courant != 0.5 else ""
+    rest = f"{shifted}{edges}{rule}{numerics}{step}"
     return f"h{1e3 * h:g}mm_r{1e3 * radius:g}mm_{weight}_wall{wall_friction:g}{rest}"
 
 
@@ -960,6 +973,7 @@ def report(folder: Path, path: Path) -> str:
         shifted = f" (shifted {r['shift']:g} h)" if r.get("shift") else ""
         shifted += f" ({1e3 * r['edge_cell']:g} at the edges)" if r.get("edge_cell") else ""
         shifted += f" (split {r['split'][0]} x {r['split'][1]})" if r.get("split") else ""
+        shifted += f" (Courant {r['courant']:g})" if r.get("courant", 0.5) != 0.5 else ""
         return (
             f"| {1e3 * r['h']:g}{shifted} | {1e3 * r['radius']:g} | {r['weight']} | {r['wall_friction']:g} "
             f"| {r['flow_rate']:.1f} | {r['e_vp_bar_max']:.1f} "
@@ -1019,6 +1033,8 @@ def report(folder: Path, path: Path) -> str:
             out += [*edge_lines(runs, studies["meshes"]), ""]
         if name == "split":
             out += [*split_lines(runs), ""]
+        if name == "timestep":
+            out += [*timestep_lines(runs), ""]
         if name == "friction":
             out += [
                 "| wall friction [°] | flow rate [kg/s/m] | corner speed [m/s] | base slip [m/s] "
@@ -1056,7 +1072,7 @@ def report(folder: Path, path: Path) -> str:
 #: What ``docs/silo.json`` gives of each run (lengths in m, the flow rate in kg/s/m).
 JSON_FIELDS = (
     "h", "radius", "weight", "wall_friction", "law", "m", "shift", "edge_cell", "split", "volumetric",
-    "stress", "quadrature", "flow_rate", "edge_band_width", "wall_band_width", "channel_width",
+    "stress", "quadrature", "courant", "flow_rate", "edge_band_width", "wall_band_width", "channel_width",
     "mean_iterations", "max_iterations", "unconverged", "particles", "steps",
 )  # fmt: skip
 #: The numerics every study but the numerics study runs with (:func:`run`'s defaults).
@@ -1064,22 +1080,65 @@ NUMERICS = dict(volumetric="nodal", stress="cell", quadrature="cell")
 
 
 def write_json(runs, path: Path) -> None:
-    """The stored runs as ``{"default_law", "numerics", "runs", "numerics_runs", "split_runs"}`` in ``path``.
+    """The stored runs as ``{"default_law", "numerics", "runs", "numerics_runs", "split_runs",
+    "timestep_runs"}`` in ``path``.
 
     Each run gives :data:`JSON_FIELDS`; ``runs`` are those with the default numerics
-    (:data:`NUMERICS`, also given) on squares, ``numerics_runs`` the numerics study's others,
-    ``split_runs`` those on rectangles (the ``split`` study). ``law`` is that
+    (:data:`NUMERICS`, also given) on squares at the default time step, ``numerics_runs`` the
+    numerics study's others, ``split_runs`` those on rectangles (the ``split`` study),
+    ``timestep_runs`` those at another Courant factor (the ``timestep`` study). ``law`` is that
     of the non-local runs (``"local"`` for r = 0); the velocity band widths are given for the runs
     that recorded the speed across the bands.
     """
-    rows = {"runs": [], "numerics_runs": [], "split_runs": []}
+    rows = {"runs": [], "numerics_runs": [], "split_runs": [], "timestep_runs": []}
     for r in runs:
-        row = {"channel_width": band_widths(r)["channel"], **NUMERICS, **r}
+        row = {"channel_width": band_widths(r)["channel"], **NUMERICS, "courant": 0.5, **r}
         row["law"] = r.get("law", "max") if r["radius"] > 0 else "local"
         listed = "runs" if all(row[k] == v for k, v in NUMERICS.items()) else "numerics_runs"
         listed = "split_runs" if row.get("split") else listed
+        listed = "timestep_runs" if row["courant"] != 0.5 else listed
         rows[listed].append({k: row[k] for k in JSON_FIELDS if row.get(k) is not None})
     path.write_text(json.dumps({"default_law": "max", "numerics": NUMERICS, **rows}, indent=1))
+
+
+def timestep_lines(runs) -> list[str]:
+    """Lines of Markdown: each mesh and model against the Courant factor, and the change of its
+    numbers from the second smallest factor to the smallest."""
+    out = [
+        "| model | h [mm] | Courant | dt [s] | flow rate [kg/s/m] | edge band [mm] | wall band [mm] "
+        "| channel [mm] | iterations/step | unconverged steps |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    changes = []
+    groups = {}
+    for r in runs:
+        groups.setdefault((r["radius"], r["h"]), []).append(r)
+    for (radius, h), rs in groups.items():
+        rs = sorted(rs, key=lambda r: -r.get("courant", 0.5))
+        model = "local" if radius == 0 else f"r = {1e3 * radius:g} mm"
+        for r in rs:
+            out.append(
+                f"| {model} | {1e3 * h:g} | {r.get('courant', 0.5):g} | {r['dt']:.3g} | {r['flow_rate']:.1f} "
+                f"| {1e3 * r['edge_band_width']:.1f} | {1e3 * r['wall_band_width']:.1f} "
+                f"| {1e3 * band_widths(r)['channel']:.1f} | {r['mean_iterations']:.2f} | {r['unconverged']} |"
+            )
+        if len(rs) >= 2:
+            a, b = rs[-2], rs[-1]
+            change = lambda key: f"{100.0 * (b[key] / a[key] - 1.0):+.1f} %"  # noqa: E731
+            factors = f"Courant {a.get('courant', 0.5):g} -> {b.get('courant', 0.5):g}"
+            changes.append(
+                f"- {model}, h = {1e3 * h:g} mm, {factors}: "
+                f"flow rate {change('flow_rate')}, edge band {change('edge_band_width')}, "
+                f"wall band {change('wall_band_width')}"
+            )
+    return [
+        *out,
+        "",
+        "Band widths: the 10-90 % rise of the speed across the band (the velocity, not e_vp_bar), "
+        "at y = 1 cm beside the outlet edge and at mid-height along the wall.",
+        "",
+        *changes,
+    ]
 
 
 def split_lines(runs) -> list[str]:
@@ -1216,6 +1275,9 @@ def main():
     parser.add_argument(
         "--quadrature", default="cell", choices=["particle", "cell"], help="how R integrates a cell"
     )
+    parser.add_argument(
+        "--courant", type=float, default=0.5, help="the time step's Courant factor, in (0, 1]"
+    )
     parser.add_argument("--output", type=Path, default=Path("results/silo"))
     parser.add_argument("--report", type=Path, help="write the Markdown report of the stored studies here")
     parser.add_argument("--force", action="store_true", help="run again the runs that are stored")
@@ -1224,6 +1286,8 @@ def main():
         dm.NonlocalAverage(args.radius, args.weight, law=dm.NonlocalLaw(args.law, args.m))
     except ValueError as e:
         parser.error(f"--radius, --weight, --law, --m: {e}")
+    if not 0.0 < args.courant <= 1.0:
+        parser.error(f"--courant must be in (0, 1], got {args.courant:g}")
     if min(args.split) < 1:
         parser.error(f"--split: KX and KY must be whole numbers >= 1, got {' '.join(map(str, args.split))}")
     if args.study is None and args.report is None:
@@ -1240,6 +1304,7 @@ def main():
                 volumetric=args.volumetric,
                 stress=args.stress,
                 quadrature=args.quadrature,
+                courant=args.courant,
             )
         ]
     elif args.study is None:

@@ -121,12 +121,20 @@ def test_silo_quick_paper_law_and_its_report(tmp_path):
     assert any(line.startswith("| paper | 20 | wendland | 25 |") for line in lines)
     other = {**runs[0], "volumetric": "cell"}  # a run of the numerics study: listed apart
     split = {**runs[0], "split": [2, 1]}  # a run on rectangles: listed apart too
-    demo.write_json([*runs, other, split], tmp_path / "silo.json")
+    step = {**runs[0], "courant": 0.25}  # a run of the time-step study: apart as well
+    demo.write_json([*runs, other, split, step], tmp_path / "silo.json")
     data = json.loads((tmp_path / "silo.json").read_text())
     assert data["default_law"] == "max" and [r["law"] for r in data["runs"]] == ["local", "paper"]
     assert all(r["volumetric"] == data["numerics"]["volumetric"] == "nodal" for r in data["runs"])
     assert [r["volumetric"] for r in data["numerics_runs"]] == ["cell"]
     assert [r["split"] for r in data["split_runs"]] == [[2, 1]]
+    assert [r["courant"] for r in data["timestep_runs"]] == [0.25]
+    assert all(r["courant"] == 0.5 for r in data["runs"])
+    # The time-step study's table: a row per factor, and the change to the smallest.
+    lines = demo.timestep_lines([step, runs[0]])
+    assert [line.split(" | ")[2] for line in lines[2:4]] == ["0.5", "0.25"]
+    change = [line for line in lines if line.startswith("- local, h = 25 mm, Courant 0.5 -> 0.25: flow rate")]
+    assert len(change) == 1 and "edge band +0.0 %, wall band +0.0 %" in change[0]
     assert data["runs"][1]["edge_band_width"] == runs[1]["edge_band_width"]
     assert {"h", "radius", "weight", "wall_friction", "flow_rate", "channel_width"} <= set(data["runs"][0])
 
@@ -142,6 +150,19 @@ def test_silo_quick_overnonlocal_mix_is_named_by_its_factor():
     assert key == "h10mm_r5mm_wendland_wall20_overnonlocal_m1.01"
     with pytest.raises(ValueError, match="needs its factor m"):
         demo.build(h=0.025, radius=0.02, weight="wendland", law="overnonlocal")
+
+
+def test_silo_time_step_follows_the_courant_factor(monkeypatch, capsys):
+    """Half the factor, half the step; the runs are named by it; the CLI refuses one out of (0, 1]."""
+    demo = load("demo_silo")
+    steps = [demo.build(h=0.025, radius=0.0, courant=c)[0].dt for c in (0.5, 0.25)]
+    assert steps[1] == pytest.approx(0.5 * steps[0], rel=1e-12)
+    assert demo.run_key(h=0.01, radius=5e-3, courant=0.25) == "h10mm_r5mm_cubic_wall20_courant0.25"
+    assert demo.run_key(h=0.01, radius=5e-3, courant=0.5) == demo.run_key(h=0.01, radius=5e-3)
+    monkeypatch.setattr("sys.argv", ["demo_silo.py", "--courant", "1.5"])
+    with pytest.raises(SystemExit) as stop:
+        demo.main()
+    assert stop.value.code == 2 and "--courant must be in (0, 1], got 1.5" in capsys.readouterr().err
 
 
 def test_silo_with_cells_refined_at_the_outlet_edges():
