@@ -223,9 +223,11 @@ def discharged_mass(solver) -> float:
 
 
 #: Heights [m] of the speed profiles across the bands: just above the outlet edge (the band
-#: that rises from it along the stagnant zone) and at mid-height (the band between the material
-#: sliding down the wall and the core).
-BAND_HEIGHTS = {"edge": 0.01, "wall": 0.15}
+#: that rises from it along the stagnant zone), at the stagnant zone's mid-height (the same
+#: band above the flow's acceleration into the opening: the zone over the plate reaches about
+#: 4 cm up the wall) and at the silo's mid-height (the band between the material sliding down
+#: the wall and the core).
+BAND_HEIGHTS = {"edge": 0.01, "stagnant": 0.02, "wall": 0.15}
 
 
 class Monitor:
@@ -471,10 +473,10 @@ def stagnant_zones(solver, width=0.2, outlet=0.1, h=0.01) -> dict:
 def velocity_bands(bands: dict, width=0.2) -> dict:
     """Band widths [m] from the time-averaged speed across the left half at :data:`BAND_HEIGHTS`.
 
-    ``edge_band_width`` and ``wall_band_width``: the 10-90 % width of the steepest jump of the
-    speed (:func:`dolfin_mpm.post.measure.jump_width`) across the left half at the height of
-    each, taken horizontally (the edge band crosses that line obliquely, the same on every
-    mesh); ``*_band_x``: where the jump is [m].
+    ``edge_band_width``, ``stagnant_band_width`` and ``wall_band_width``: the 10-90 % width of
+    the steepest jump of the speed (:func:`dolfin_mpm.post.measure.jump_width`) across the left
+    half at the height of each, taken horizontally (the edge and stagnant bands cross that line
+    obliquely, the same on every mesh); ``*_band_x``: where the jump is [m].
     """
     out = {}
     for name, (x, speed) in bands.items():
@@ -913,6 +915,9 @@ def ranks(r) -> str:
 
 
 def _spread(values) -> str:
+    """``largest / smallest - 1`` in per cent; ``-`` where a run lacks the value (NaN)."""
+    if any(math.isnan(v) for v in values):
+        return "-"
     return f"{100 * (max(values) / min(values) - 1):.0f} %"
 
 
@@ -1072,8 +1077,9 @@ def report(folder: Path, path: Path) -> str:
 #: What ``docs/silo.json`` gives of each run (lengths in m, the flow rate in kg/s/m).
 JSON_FIELDS = (
     "h", "radius", "weight", "wall_friction", "law", "m", "shift", "edge_cell", "split", "volumetric",
-    "stress", "quadrature", "courant", "flow_rate", "edge_band_width", "wall_band_width", "channel_width",
-    "mean_iterations", "max_iterations", "unconverged", "particles", "steps",
+    "stress", "quadrature", "courant", "flow_rate", "edge_band_width", "stagnant_band_width",
+    "wall_band_width", "channel_width", "mean_iterations", "max_iterations", "unconverged", "particles",
+    "steps",
 )  # fmt: skip
 #: The numerics every study but the numerics study runs with (:func:`run`'s defaults).
 NUMERICS = dict(volumetric="nodal", stress="cell", quadrature="cell")
@@ -1105,9 +1111,9 @@ def timestep_lines(runs) -> list[str]:
     """Lines of Markdown: each mesh and model against the Courant factor, and the change of its
     numbers from the second smallest factor to the smallest."""
     out = [
-        "| model | h [mm] | Courant | dt [s] | flow rate [kg/s/m] | edge band [mm] | wall band [mm] "
-        "| channel [mm] | iterations/step | unconverged steps |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "| model | h [mm] | Courant | dt [s] | flow rate [kg/s/m] | edge band [mm] | stagnant band [mm] "
+        "| wall band [mm] | channel [mm] | iterations/step | unconverged steps |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     changes = []
     groups = {}
@@ -1119,7 +1125,8 @@ def timestep_lines(runs) -> list[str]:
         for r in rs:
             out.append(
                 f"| {model} | {1e3 * h:g} | {r.get('courant', 0.5):g} | {r['dt']:.3g} | {r['flow_rate']:.1f} "
-                f"| {1e3 * r['edge_band_width']:.1f} | {1e3 * r['wall_band_width']:.1f} "
+                f"| {1e3 * r['edge_band_width']:.1f} | {1e3 * r.get('stagnant_band_width', math.nan):.1f} "
+                f"| {1e3 * r['wall_band_width']:.1f} "
                 f"| {1e3 * band_widths(r)['channel']:.1f} | {r['mean_iterations']:.2f} | {r['unconverged']} |"
             )
         if len(rs) >= 2:
@@ -1129,13 +1136,14 @@ def timestep_lines(runs) -> list[str]:
             changes.append(
                 f"- {model}, h = {1e3 * h:g} mm, {factors}: "
                 f"flow rate {change('flow_rate')}, edge band {change('edge_band_width')}, "
-                f"wall band {change('wall_band_width')}"
+                f"stagnant band {change('stagnant_band_width')}, wall band {change('wall_band_width')}"
             )
     return [
         *out,
         "",
         "Band widths: the 10-90 % rise of the speed across the band (the velocity, not e_vp_bar), "
-        "at y = 1 cm beside the outlet edge and at mid-height along the wall.",
+        "at y = 1 cm beside the outlet edge, at y = 2 cm (the stagnant zone's mid-height) and at "
+        "the silo's mid-height along the wall.",
         "",
         *changes,
     ]
@@ -1169,9 +1177,9 @@ def split_lines(runs) -> list[str]:
 def law_lines(runs) -> list[str]:
     """Lines of Markdown: the laws' table (velocity band widths) and their spreads over the meshes."""
     out = [
-        "| law | r [mm] | weight | h [mm] | flow rate [kg/s/m] | edge band [mm] | wall band [mm] "
-        "| iterations/step | unconverged steps |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| law | r [mm] | weight | h [mm] | flow rate [kg/s/m] | edge band [mm] | stagnant band [mm] "
+        "| wall band [mm] | iterations/step | unconverged steps |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     groups = {}
     for r in runs:
@@ -1180,30 +1188,36 @@ def law_lines(runs) -> list[str]:
         out.append(
             f"| {law} | {1e3 * r['radius']:g} | {r['weight']} | {1e3 * r['h']:g} | {r['flow_rate']:.1f} "
             f"| {1e3 * r.get('edge_band_width', math.nan):.1f} "
+            f"| {1e3 * r.get('stagnant_band_width', math.nan):.1f} "
             f"| {1e3 * r.get('wall_band_width', math.nan):.1f} "
             f"| {r['mean_iterations']:.2f} | {r['unconverged']} |"
         )
     out += [
         "",
-        "edge band, wall band: the 10-90 % width of the steepest jump of the time-averaged speed "
-        "(t = 0.2-0.25 s) across the left half at y = 1 cm (the band that rises from the outlet "
-        "edge along the stagnant zone, crossed obliquely) and at y = 15 cm (between the material "
-        "sliding down the wall and the core), bins of half a cell; the jump ends where the speed's "
-        "slope has fallen to a tenth of its steepest (`dolfin_mpm.post.measure.jump_width`).",
+        "edge band, stagnant band, wall band: the 10-90 % width of the steepest jump of the "
+        "time-averaged speed (t = 0.2-0.25 s) across the left half at y = 1 cm (the band that rises "
+        "from the outlet edge along the stagnant zone, crossed obliquely), at y = 2 cm (the same band "
+        "at the stagnant zone's mid-height) and at y = 15 cm (between the material sliding down the "
+        "wall and the core), bins of half a cell; the jump ends where the speed's slope has fallen "
+        "to a tenth of its steepest (`dolfin_mpm.post.measure.jump_width`). Runs stored before the "
+        "stagnant band was measured show nan there.",
         "",
     ]
     for (law, radius, weight), rs in groups.items():
         if len(rs) > 1:
             fine = [r for r in rs if r["h"] <= 0.005]
-            spread = lambda key, sel=rs: _spread([r[key] for r in sel])  # noqa: E731
+            spread = lambda key, sel=rs: _spread([r.get(key, math.nan) for r in sel])  # noqa: E731
             meshes = " / ".join(f"{1e3 * r['h']:g}" for r in rs)
             out.append(
                 f"- {law}, r = {1e3 * radius:g} mm ({weight}): spread over h = "
                 f"{meshes} mm: flow rate {spread('flow_rate')}, "
-                f"edge band {spread('edge_band_width')}, wall band {spread('wall_band_width')}"
+                f"edge band {spread('edge_band_width')}, stagnant band {spread('stagnant_band_width')}, "
+                f"wall band {spread('wall_band_width')}"
                 + (
                     f"; over h <= 5 mm: flow rate {spread('flow_rate', fine)}, edge band "
-                    f"{spread('edge_band_width', fine)}, wall band {spread('wall_band_width', fine)}"
+                    f"{spread('edge_band_width', fine)}, "
+                    f"stagnant band {spread('stagnant_band_width', fine)}, "
+                    f"wall band {spread('wall_band_width', fine)}"
                     if len(fine) > 1
                     else ""
                 )

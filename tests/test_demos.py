@@ -115,7 +115,7 @@ def test_silo_quick_paper_law_and_its_report(tmp_path):
     runs = [demo.run(radius=0.0, **quick), demo.run(radius=0.02, weight="wendland", law="paper", **quick)]
     assert runs[1]["unconverged"] == 0 and runs[1]["mean_iterations"] > 1.0
     for r in runs:
-        for band in ("edge", "wall"):
+        for band in ("edge", "stagnant", "wall"):
             assert 0.0 < r[f"{band}_band_width"] < 0.1 and 0.0 < r[f"{band}_band_x"] < 0.1
     lines = demo.law_lines(runs)
     assert any(line.startswith("| paper | 20 | wendland | 25 |") for line in lines)
@@ -134,9 +134,10 @@ def test_silo_quick_paper_law_and_its_report(tmp_path):
     lines = demo.timestep_lines([step, runs[0]])
     assert [line.split(" | ")[2] for line in lines[2:4]] == ["0.5", "0.25"]
     change = [line for line in lines if line.startswith("- local, h = 25 mm, Courant 0.5 -> 0.25: flow rate")]
-    assert len(change) == 1 and "edge band +0.0 %, wall band +0.0 %" in change[0]
+    assert len(change) == 1 and "edge band +0.0 %, stagnant band +0.0 %, wall band +0.0 %" in change[0]
     assert data["runs"][1]["edge_band_width"] == runs[1]["edge_band_width"]
     assert {"h", "radius", "weight", "wall_friction", "flow_rate", "channel_width"} <= set(data["runs"][0])
+    assert data["runs"][1]["stagnant_band_width"] == runs[1]["stagnant_band_width"]
 
 
 def test_silo_quick_overnonlocal_mix_is_named_by_its_factor():
@@ -163,6 +164,7 @@ def test_silo_time_step_follows_the_courant_factor(monkeypatch, capsys):
     with pytest.raises(SystemExit) as stop:
         demo.main()
     assert stop.value.code == 2 and "--courant must be in (0, 1], got 1.5" in capsys.readouterr().err
+    assert demo._spread([0.04, 0.05]) == "25 %" and demo._spread([0.04, float("nan")]) == "-"
 
 
 def test_silo_with_cells_refined_at_the_outlet_edges():
