@@ -921,6 +921,13 @@ def _spread(values) -> str:
     return f"{100 * (max(values) / min(values) - 1):.0f} %"
 
 
+def _change(before: float, after: float) -> str:
+    """``after / before - 1`` in per cent, signed; ``-`` where a run lacks the value (NaN)."""
+    if math.isnan(before) or math.isnan(after):
+        return "-"
+    return f"{100.0 * (after / before - 1.0):+.1f} %"
+
+
 def code_line(runs) -> str:
     """Which code made the stored runs (:func:`code_version`), against the code now."""
     made = {}
@@ -1131,7 +1138,7 @@ def timestep_lines(runs) -> list[str]:
             )
         if len(rs) >= 2:
             a, b = rs[-2], rs[-1]
-            change = lambda key: f"{100.0 * (b[key] / a[key] - 1.0):+.1f} %"  # noqa: E731
+            change = lambda key: _change(a.get(key, math.nan), b.get(key, math.nan))  # noqa: E731
             factors = f"Courant {a.get('courant', 0.5):g} -> {b.get('courant', 0.5):g}"
             changes.append(
                 f"- {model}, h = {1e3 * h:g} mm, {factors}: "

@@ -135,6 +135,8 @@ def test_silo_quick_paper_law_and_its_report(tmp_path):
     assert [line.split(" | ")[2] for line in lines[2:4]] == ["0.5", "0.25"]
     change = [line for line in lines if line.startswith("- local, h = 25 mm, Courant 0.5 -> 0.25: flow rate")]
     assert len(change) == 1 and "edge band +0.0 %, stagnant band +0.0 %, wall band +0.0 %" in change[0]
+    older = {k: v for k, v in step.items() if k != "stagnant_band_width"}  # stored before it was measured
+    assert "stagnant band -, wall band +0.0 %" in demo.timestep_lines([older, runs[0]])[-1]
     assert data["runs"][1]["edge_band_width"] == runs[1]["edge_band_width"]
     assert {"h", "radius", "weight", "wall_friction", "flow_rate", "channel_width"} <= set(data["runs"][0])
     assert data["runs"][1]["stagnant_band_width"] == runs[1]["stagnant_band_width"]
