@@ -45,6 +45,7 @@ from mpi4py import MPI
 from scipy.spatial import cKDTree
 
 from dolfin_mpm.averaging import LAWS, WEIGHTS
+from dolfin_mpm.explicit.options import Options
 from dolfin_mpm.post.measure import bin_sums, fwhm, jump_width, rise_width
 from dolfin_mpm.post.plotting import figure
 
@@ -93,6 +94,15 @@ def grid_lines(lo: float, hi: float, h: float, fine: float | None = None, zones=
     return np.array(lines)
 
 
+#: The solver's default Courant factor of the time step: the runs' unless a study sets another.
+COURANT = Options().courant
+
+
+def courant_of(run: dict) -> float:
+    """The Courant factor of a stored run (:data:`COURANT` for runs stored before it was recorded)."""
+    return run.get("courant") or COURANT
+
+
 #: How the cells go to the ranks (:func:`build`).
 PARTITIONS = ("rebalance", "strips", "dolfinx")
 
@@ -100,7 +110,7 @@ PARTITIONS = ("rebalance", "strips", "dolfinx")
 def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, height=0.3, outlet=0.1, ppc=4,
           shift=0.0, edge_cell=None, edge_zone=0.04, split=(1, 1), comm=MPI.COMM_WORLD,
           partition="rebalance", rebalance=1.05, law="max", m=None, volumetric="nodal", stress="cell",
-          quadrature="cell", courant=0.5):  # fmt: skip
+          quadrature="cell", courant=COURANT):  # fmt: skip
     """The silo on a mesh of ``h`` [m]: solver, sinks and the outlet's gate, before settling.
 
     The walls, the bottom plates and the gate are rigid walls as geometry
@@ -137,7 +147,7 @@ def build(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, he
             (checked every 20 steps); ``"dolfinx"`` keeps DOLFINx's partition. Cuts across
             the flow cost more than an imbalance: particles cross them every step, and each
             crossing rebuilds the non-local halo and pair lists (``docs/parallel.md``).
-        courant: the time step's Courant factor, in (0, 1] (the solver's default 0.5).
+        courant: the time step's Courant factor, in (0, 1] (default :data:`COURANT`).
 
     Returns:
         ``(solver, gate)``; the gate is a boundary condition in ``solver.bcs``.
@@ -317,7 +327,7 @@ def settle_and_open(solver, gate, t_settle: float, progress=True) -> float:
 def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, height=0.3, outlet=0.1,
         ppc=4, shift=0.0, edge_cell=None, split=(1, 1), t_end=0.25, t_settle=0.02, output=None,
         interval=0.005, progress=True, comm=MPI.COMM_WORLD, law="max", volumetric="nodal",
-        stress="cell", quadrature="cell", partition="rebalance", m=None, courant=0.5):  # fmt: skip
+        stress="cell", quadrature="cell", partition="rebalance", m=None, courant=COURANT):  # fmt: skip
     """Settle the fill, open the outlet at t = 0 and discharge until ``t_end`` [s].
 
     Args:
@@ -600,15 +610,15 @@ STUDIES = {
             ("nodal", "cell", "cell"),
         )
     ],
-    # The time step: the Courant factor halved twice from the default 0.5 (once on h = 2.5 mm).
+    # The time step: the Courant factor halved twice from the default (once on h = 2.5 mm).
     "timestep": [
         *(
             dict(h=h, radius=r, courant=c)
             for h in (0.01, 0.005)
             for r in (0.0, 5e-3)
-            for c in (0.5, 0.25, 0.125)
+            for c in (COURANT, COURANT / 2, COURANT / 4)
         ),
-        *(dict(h=0.0025, radius=5e-3, courant=c) for c in (0.5, 0.25)),
+        *(dict(h=0.0025, radius=5e-3, courant=c) for c in (COURANT, COURANT / 2)),
     ],
     # The non-local laws with the positive-definite weight beside the local model.
     "laws": [
@@ -634,7 +644,7 @@ ARRAYS = (
 
 def run_key(
     h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, shift=0.0, edge_cell=None, split=(1, 1),
-    law="max", m=None, volumetric="nodal", stress="cell", quadrature="cell", courant=0.5,
+    law="max", m=None, volumetric="nodal", stress="cell", quadrature="cell", courant=COURANT,
 ) -> str:  # fmt: skip
     """Name of a stored run: the study parameters; every other setting is :func:`run`'s default."""
     shifted = f"_shift{shift:g}" if shift else ""
@@ -646,7 +656,7 @@ def run_key(
         + (f"_{stress}-stress" if stress != "cell" else "")
         + (f"_{quadrature}-quadrature" if quadrature != "cell" else "")
     )
-    step = f"_courant{courant:g}" if courant != 0.5 else ""
+    step = f"_courant{courant:g}" if courant != COURANT else ""
     rest = f"{shifted}{edges}{rule}{numerics}{step}"
     return f"h{1e3 * h:g}mm_r{1e3 * radius:g}mm_{weight}_wall{wall_friction:g}{rest}"
 
@@ -985,7 +995,7 @@ def report(folder: Path, path: Path) -> str:
         shifted = f" (shifted {r['shift']:g} h)" if r.get("shift") else ""
         shifted += f" ({1e3 * r['edge_cell']:g} at the edges)" if r.get("edge_cell") else ""
         shifted += f" (split {r['split'][0]} x {r['split'][1]})" if r.get("split") else ""
-        shifted += f" (Courant {r['courant']:g})" if r.get("courant", 0.5) != 0.5 else ""
+        shifted += f" (Courant {courant_of(r):g})" if courant_of(r) != COURANT else ""
         return (
             f"| {1e3 * r['h']:g}{shifted} | {1e3 * r['radius']:g} | {r['weight']} | {r['wall_friction']:g} "
             f"| {r['flow_rate']:.1f} | {r['e_vp_bar_max']:.1f} "
@@ -1105,11 +1115,11 @@ def write_json(runs, path: Path) -> None:
     """
     rows = {"runs": [], "numerics_runs": [], "split_runs": [], "timestep_runs": []}
     for r in runs:
-        row = {"channel_width": band_widths(r)["channel"], **NUMERICS, "courant": 0.5, **r}
+        row = {"channel_width": band_widths(r)["channel"], **NUMERICS, **r, "courant": courant_of(r)}
         row["law"] = r.get("law", "max") if r["radius"] > 0 else "local"
         listed = "runs" if all(row[k] == v for k, v in NUMERICS.items()) else "numerics_runs"
         listed = "split_runs" if row.get("split") else listed
-        listed = "timestep_runs" if row["courant"] != 0.5 else listed
+        listed = "timestep_runs" if row["courant"] != COURANT else listed
         rows[listed].append({k: row[k] for k in JSON_FIELDS if row.get(k) is not None})
     path.write_text(json.dumps({"default_law": "max", "numerics": NUMERICS, **rows}, indent=1))
 
@@ -1127,11 +1137,11 @@ def timestep_lines(runs) -> list[str]:
     for r in runs:
         groups.setdefault((r["radius"], r["h"]), []).append(r)
     for (radius, h), rs in groups.items():
-        rs = sorted(rs, key=lambda r: -r.get("courant", 0.5))
+        rs = sorted(rs, key=lambda r: -courant_of(r))
         model = "local" if radius == 0 else f"r = {1e3 * radius:g} mm"
         for r in rs:
             out.append(
-                f"| {model} | {1e3 * h:g} | {r.get('courant', 0.5):g} | {r['dt']:.3g} | {r['flow_rate']:.1f} "
+                f"| {model} | {1e3 * h:g} | {courant_of(r):g} | {r['dt']:.3g} | {r['flow_rate']:.1f} "
                 f"| {1e3 * r['edge_band_width']:.1f} | {1e3 * r.get('stagnant_band_width', math.nan):.1f} "
                 f"| {1e3 * r['wall_band_width']:.1f} "
                 f"| {1e3 * band_widths(r)['channel']:.1f} | {r['mean_iterations']:.2f} | {r['unconverged']} |"
@@ -1139,7 +1149,7 @@ def timestep_lines(runs) -> list[str]:
         if len(rs) >= 2:
             a, b = rs[-2], rs[-1]
             change = lambda key: _change(a.get(key, math.nan), b.get(key, math.nan))  # noqa: E731
-            factors = f"Courant {a.get('courant', 0.5):g} -> {b.get('courant', 0.5):g}"
+            factors = f"Courant {courant_of(a):g} -> {courant_of(b):g}"
             changes.append(
                 f"- {model}, h = {1e3 * h:g} mm, {factors}: "
                 f"flow rate {change('flow_rate')}, edge band {change('edge_band_width')}, "
@@ -1297,7 +1307,7 @@ def main():
         "--quadrature", default="cell", choices=["particle", "cell"], help="how R integrates a cell"
     )
     parser.add_argument(
-        "--courant", type=float, default=0.5, help="the time step's Courant factor, in (0, 1]"
+        "--courant", type=float, default=COURANT, help="the time step's Courant factor, in (0, 1]"
     )
     parser.add_argument("--output", type=Path, default=Path("results/silo"))
     parser.add_argument("--report", type=Path, help="write the Markdown report of the stored studies here")
