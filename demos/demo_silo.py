@@ -938,6 +938,42 @@ def _change(before: float, after: float) -> str:
     return f"{100.0 * (after / before - 1.0):+.1f} %"
 
 
+def mesh_runs(folder: Path, params: dict) -> list[dict]:
+    """The stored runs of the model of ``params`` on meshes of ``h`` halved or doubled up to three times.
+
+    Coarsest first; each run is the one ``params`` names with only ``h`` changed.
+    """
+    found = [stored_run(folder, **{**params, "h": params["h"] * 2.0**k}) for k in range(3, -4, -1)]
+    return [r for r in found if r is not None]
+
+
+def mesh_lines(runs) -> list[str]:
+    """What a single run is worth: the same model on the meshes stored, with the change per halving.
+
+    ``runs``: :func:`mesh_runs`. With one mesh alone, what to run to see whether it converges.
+    """
+    names = ("flow_rate", "edge_band_width", "stagnant_band_width", "wall_band_width")
+    value = lambda r, name: r.get(name, math.nan)  # noqa: E731  (older runs lack the stagnant band)
+    mm = lambda w: "-" if math.isnan(w) else f"{1e3 * w:.1f}"  # noqa: E731
+    lines = [
+        "  this model on the meshes stored: h [mm]: flow rate [kg/s/m], edge / stagnant / wall band [mm]"
+        " (the change of each from the coarser mesh)"
+    ]
+    for before, r in zip([None, *runs], runs):
+        bands = " / ".join(mm(value(r, name)) for name in names[1:])
+        change = ""
+        if before is not None:
+            change = "   (" + ", ".join(_change(value(before, n), value(r, n)) for n in names) + ")"
+        lines.append(f"    {1e3 * r['h']:g}: {r['flow_rate']:.1f}, {bands}{change}")
+    if len(runs) == 1:
+        h = runs[0]["h"]
+        lines.append(
+            f"  one mesh alone: these numbers are the mesh's until a finer one is compared (run --h {h / 2:g}"
+            " too, or --study meshes); the published mesh study is in docs/convergence.md"
+        )
+    return lines
+
+
 def code_line(runs) -> str:
     """Which code made the stored runs (:func:`code_version`), against the code now."""
     made = {}
@@ -1375,6 +1411,8 @@ def main():
                     for b, f in zip(bands, r["outlet_stress_free"])
                 )
             )
+        if args.study is None:
+            print("\n".join(mesh_lines(mesh_runs(args.output, params))))
     if args.report is not None and MPI.COMM_WORLD.rank == 0:
         report(args.output, args.report)
         print(f"wrote {args.report}")

@@ -282,6 +282,32 @@ def test_silo_runs_record_the_code_that_made_them(tmp_path, capsys):
     )
 
 
+def test_silo_single_run_is_shown_with_its_mesh_study(tmp_path):
+    """A run's numbers come with the same model's stored runs on other meshes, or what to run for them."""
+    demo = load("demo_silo")
+    runs = tmp_path / "runs"
+    runs.mkdir()
+    stored = {0.01: (134.7, 0.0352, 0.0409), 0.005: (141.8, 0.0348, 0.0457), 0.00125: (150.5, 0.0331, None)}
+    for h, (q, edge, stagnant) in stored.items():
+        r = {"stress": "cell", "quadrature": "cell", "h": h, "flow_rate": q, "edge_band_width": edge}
+        r["wall_band_width"] = 0.03
+        if stagnant is not None:  # the finest was stored before the stagnant band was measured
+            r["stagnant_band_width"] = stagnant
+        key = demo.run_key(h=h, radius=5e-3)
+        (runs / f"{key}.json").write_text(json.dumps(r))
+        np.savez(runs / f"{key}.npz", t=np.zeros(2))
+    (runs / f"{demo.run_key(h=0.0025, radius=0.0)}.json").write_text(json.dumps(r))  # another model
+    found = demo.mesh_runs(tmp_path, dict(h=0.005, radius=5e-3))
+    assert [r["h"] for r in found] == [0.01, 0.005, 0.00125]
+    lines = demo.mesh_lines(found)
+    assert lines[1] == "    10: 134.7, 35.2 / 40.9 / 30.0"
+    assert lines[2] == "    5: 141.8, 34.8 / 45.7 / 30.0   (+5.3 %, -1.1 %, +11.7 %, +0.0 %)"
+    assert lines[3] == "    1.25: 150.5, 33.1 / - / 30.0   (+6.1 %, -4.9 %, -, +0.0 %)"
+    assert len(lines) == 4  # more than one mesh: no advice
+    assert demo.mesh_runs(tmp_path, dict(h=0.005, radius=0.01)) == []  # nothing of that model
+    assert "run --h 0.0025 too, or --study meshes" in demo.mesh_lines(found[1:2])[-1]
+
+
 def test_column_collapse_quick_mesh_study(tmp_path, monkeypatch, capsys):
     """The collapse study on two coarse meshes, cut short: the front has left the gate on both
     and is behind where free fall from the column's top, ``sqrt(2 g H0) t``, could carry it, the
