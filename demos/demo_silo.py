@@ -957,7 +957,7 @@ def mesh_lines(runs) -> list[str]:
     mm = lambda w: "-" if math.isnan(w) else f"{1e3 * w:.1f}"  # noqa: E731
     lines = [
         "  this model on the meshes stored: h [mm]: flow rate [kg/s/m], edge / stagnant / wall band [mm]"
-        " (the change of each from the coarser mesh)"
+        " (the change of each from the next coarser mesh stored)"
     ]
     for before, r in zip([None, *runs], runs):
         bands = " / ".join(mm(value(r, name)) for name in names[1:])
