@@ -931,6 +931,12 @@ def _spread(values) -> str:
     return f"{100 * (max(values) / min(values) - 1):.0f} %"
 
 
+def _mm(run: dict, name: str) -> str:
+    """The run's width ``name`` [m] in mm to 0.1; ``-`` where it was stored before it was measured."""
+    width = run.get(name, math.nan)
+    return "-" if math.isnan(width) else f"{1e3 * width:.1f}"
+
+
 def _change(before: float, after: float) -> str:
     """``after / before - 1`` in per cent, signed; ``-`` where a run lacks the value (NaN)."""
     if math.isnan(before) or math.isnan(after):
@@ -948,19 +954,20 @@ def mesh_runs(folder: Path, params: dict) -> list[dict]:
 
 
 def mesh_lines(runs) -> list[str]:
-    """What a single run is worth: the same model on the meshes stored, with the change per halving.
+    """What a single run is worth: the same model on the other meshes stored, and the changes.
 
-    ``runs``: :func:`mesh_runs`. With one mesh alone, what to run to see whether it converges.
+    ``runs``: :func:`mesh_runs`; each number's change is from the next coarser mesh stored (one
+    halving of h, or more where a mesh is missing). With one mesh alone, what to run to see
+    whether it converges.
     """
     names = ("flow_rate", "edge_band_width", "stagnant_band_width", "wall_band_width")
     value = lambda r, name: r.get(name, math.nan)  # noqa: E731  (older runs lack the stagnant band)
-    mm = lambda w: "-" if math.isnan(w) else f"{1e3 * w:.1f}"  # noqa: E731
     lines = [
         "  this model on the meshes stored: h [mm]: flow rate [kg/s/m], edge / stagnant / wall band [mm]"
         " (the change of each from the next coarser mesh stored)"
     ]
     for before, r in zip([None, *runs], runs):
-        bands = " / ".join(mm(value(r, name)) for name in names[1:])
+        bands = " / ".join(_mm(r, name) for name in names[1:])
         change = ""
         if before is not None:
             change = "   (" + ", ".join(_change(value(before, n), value(r, n)) for n in names) + ")"
@@ -968,8 +975,8 @@ def mesh_lines(runs) -> list[str]:
     if len(runs) == 1:
         h = runs[0]["h"]
         lines.append(
-            f"  one mesh alone: these numbers are the mesh's until a finer one is compared (run --h {h / 2:g}"
-            " too, or --study meshes); the published mesh study is in docs/convergence.md"
+            f"  one mesh alone: these numbers are the mesh's until a finer one is compared (run again with"
+            f" --h {h / 2:g} and the same options); the published mesh study is in docs/convergence.md"
         )
     return lines
 
@@ -1139,10 +1146,10 @@ NUMERICS = dict(volumetric="nodal", stress="cell", quadrature="cell")
 
 
 def write_json(runs, path: Path) -> None:
-    """The stored runs as ``{"default_law", "numerics", "runs", "numerics_runs", "split_runs",
-    "timestep_runs"}`` in ``path``.
+    """The stored runs as JSON in ``path``, listed by study.
 
-    Each run gives :data:`JSON_FIELDS`; ``runs`` are those with the default numerics
+    The keys: ``default_law``, ``numerics``, ``runs``, ``numerics_runs``, ``split_runs`` and
+    ``timestep_runs``. Each run gives :data:`JSON_FIELDS`; ``runs`` are those with the default numerics
     (:data:`NUMERICS`, also given) on squares at the default time step, ``numerics_runs`` the
     numerics study's others, ``split_runs`` those on rectangles (the ``split`` study),
     ``timestep_runs`` those at another Courant factor (the ``timestep`` study). ``law`` is that
@@ -1161,8 +1168,11 @@ def write_json(runs, path: Path) -> None:
 
 
 def timestep_lines(runs) -> list[str]:
-    """Lines of Markdown: each mesh and model against the Courant factor, and the change of its
-    numbers from the second smallest factor to the smallest."""
+    """Lines of Markdown: each mesh and model against the Courant factor, with the changes.
+
+    The change of each number is from the second smallest factor to the smallest; runs stored
+    before a number was measured show ``-``.
+    """
     out = [
         "| model | h [mm] | Courant | dt [s] | flow rate [kg/s/m] | edge band [mm] | stagnant band [mm] "
         "| wall band [mm] | channel [mm] | iterations/step | unconverged steps |",
@@ -1176,10 +1186,11 @@ def timestep_lines(runs) -> list[str]:
         rs = sorted(rs, key=lambda r: -courant_of(r))
         model = "local" if radius == 0 else f"r = {1e3 * radius:g} mm"
         for r in rs:
+            dt = f"{r['dt']:.3g}" if "dt" in r else "-"  # stored before the step was recorded
             out.append(
-                f"| {model} | {1e3 * h:g} | {courant_of(r):g} | {r['dt']:.3g} | {r['flow_rate']:.1f} "
-                f"| {1e3 * r['edge_band_width']:.1f} | {1e3 * r.get('stagnant_band_width', math.nan):.1f} "
-                f"| {1e3 * r['wall_band_width']:.1f} "
+                f"| {model} | {1e3 * h:g} | {courant_of(r):g} | {dt} "
+                f"| {r['flow_rate']:.1f} | {_mm(r, 'edge_band_width')} "
+                f"| {_mm(r, 'stagnant_band_width')} | {_mm(r, 'wall_band_width')} "
                 f"| {1e3 * band_widths(r)['channel']:.1f} | {r['mean_iterations']:.2f} | {r['unconverged']} |"
             )
         if len(rs) >= 2:
@@ -1240,9 +1251,9 @@ def law_lines(runs) -> list[str]:
         groups.setdefault((law, r["radius"], r["weight"]), []).append(r)
         out.append(
             f"| {law} | {1e3 * r['radius']:g} | {r['weight']} | {1e3 * r['h']:g} | {r['flow_rate']:.1f} "
-            f"| {1e3 * r.get('edge_band_width', math.nan):.1f} "
-            f"| {1e3 * r.get('stagnant_band_width', math.nan):.1f} "
-            f"| {1e3 * r.get('wall_band_width', math.nan):.1f} "
+            f"| {_mm(r, 'edge_band_width')} "
+            f"| {_mm(r, 'stagnant_band_width')} "
+            f"| {_mm(r, 'wall_band_width')} "
             f"| {r['mean_iterations']:.2f} | {r['unconverged']} |"
         )
     out += [
@@ -1353,8 +1364,10 @@ def main():
         dm.NonlocalAverage(args.radius, args.weight, law=dm.NonlocalLaw(args.law, args.m))
     except ValueError as e:
         parser.error(f"--radius, --weight, --law, --m: {e}")
-    if not 0.0 < args.courant <= 1.0:
-        parser.error(f"--courant must be in (0, 1], got {args.courant:g}")
+    try:
+        Options(courant=args.courant)
+    except ValueError as e:
+        parser.error(f"--courant: {e}")
     if min(args.split) < 1:
         parser.error(f"--split: KX and KY must be whole numbers >= 1, got {' '.join(map(str, args.split))}")
     if args.study is None and args.report is None:

@@ -121,7 +121,8 @@ def test_silo_quick_paper_law_and_its_report(tmp_path):
     assert any(line.startswith("| paper | 20 | wendland | 25 |") for line in lines)
     other = {**runs[0], "volumetric": "cell"}  # a run of the numerics study: listed apart
     split = {**runs[0], "split": [2, 1]}  # a run on rectangles: listed apart too
-    step = {**runs[0], "courant": 0.25}  # a run of the time-step study: apart as well
+    wider = 1.1 * runs[0]["edge_band_width"]  # (the quick run is too short for a flow rate: NaN)
+    step = {**runs[0], "courant": 0.25, "edge_band_width": wider}  # a run of the time-step study
     demo.write_json([*runs, other, split, step], tmp_path / "silo.json")
     data = json.loads((tmp_path / "silo.json").read_text())
     assert data["default_law"] == "max" and [r["law"] for r in data["runs"]] == ["local", "paper"]
@@ -134,9 +135,14 @@ def test_silo_quick_paper_law_and_its_report(tmp_path):
     lines = demo.timestep_lines([step, runs[0]])
     assert [line.split(" | ")[2] for line in lines[2:4]] == ["0.5", "0.25"]
     change = [line for line in lines if line.startswith("- local, h = 25 mm, Courant 0.5 -> 0.25: flow rate")]
-    assert len(change) == 1 and "edge band +0.0 %, stagnant band +0.0 %, wall band +0.0 %" in change[0]
-    older = {k: v for k, v in step.items() if k != "stagnant_band_width"}  # stored before it was measured
-    assert "stagnant band -, wall band +0.0 %" in demo.timestep_lines([older, runs[0]])[-1]
+    assert len(change) == 1 and "flow rate -, edge band +10.0 %, stagnant band +0.0 %" in change[0]
+    older = {k: v for k, v in step.items() if k not in ("stagnant_band_width", "dt")}  # stored before them
+    lines = demo.timestep_lines([older, runs[0]])
+    assert "stagnant band -, wall band +0.0 %" in lines[-1] and "| 0.25 | - |" in lines[3]
+    assert lines[3].split(" | ")[6] == "-"  # no stagnant band in the table either
+    unrecorded = {k: v for k, v in runs[0].items() if k != "courant"}  # stored before the factor was
+    demo.write_json([unrecorded], tmp_path / "older.json")
+    assert json.loads((tmp_path / "older.json").read_text())["runs"][0]["courant"] == 0.5
     assert data["runs"][1]["edge_band_width"] == runs[1]["edge_band_width"]
     assert {"h", "radius", "weight", "wall_friction", "flow_rate", "channel_width"} <= set(data["runs"][0])
     assert data["runs"][1]["stagnant_band_width"] == runs[1]["stagnant_band_width"]
@@ -165,7 +171,7 @@ def test_silo_time_step_follows_the_courant_factor(monkeypatch, capsys):
     monkeypatch.setattr("sys.argv", ["demo_silo.py", "--courant", "1.5"])
     with pytest.raises(SystemExit) as stop:
         demo.main()
-    assert stop.value.code == 2 and "--courant must be in (0, 1], got 1.5" in capsys.readouterr().err
+    assert stop.value.code == 2 and "--courant: courant must be in (0, 1], got 1.5" in capsys.readouterr().err
     assert demo._spread([0.04, 0.05]) == "25 %" and demo._spread([0.04, float("nan")]) == "-"
 
 
@@ -296,7 +302,9 @@ def test_silo_single_run_is_shown_with_its_mesh_study(tmp_path):
         key = demo.run_key(h=h, radius=5e-3)
         (runs / f"{key}.json").write_text(json.dumps(r))
         np.savez(runs / f"{key}.npz", t=np.zeros(2))
-    (runs / f"{demo.run_key(h=0.0025, radius=0.0)}.json").write_text(json.dumps(r))  # another model
+    other = demo.run_key(h=0.0025, radius=0.01)  # another model, on a mesh the first lacks
+    (runs / f"{other}.json").write_text(json.dumps({**r, "h": 0.0025}))
+    np.savez(runs / f"{other}.npz", t=np.zeros(2))
     found = demo.mesh_runs(tmp_path, dict(h=0.005, radius=5e-3))
     assert [r["h"] for r in found] == [0.01, 0.005, 0.00125]
     lines = demo.mesh_lines(found)
@@ -304,8 +312,8 @@ def test_silo_single_run_is_shown_with_its_mesh_study(tmp_path):
     assert lines[2] == "    5: 141.8, 34.8 / 45.7 / 30.0   (+5.3 %, -1.1 %, +11.7 %, +0.0 %)"
     assert lines[3] == "    1.25: 150.5, 33.1 / - / 30.0   (+6.1 %, -4.9 %, -, +0.0 %)"
     assert len(lines) == 4  # more than one mesh: no advice
-    assert demo.mesh_runs(tmp_path, dict(h=0.005, radius=0.01)) == []  # nothing of that model
-    assert "run --h 0.0025 too, or --study meshes" in demo.mesh_lines(found[1:2])[-1]
+    assert [r["h"] for r in demo.mesh_runs(tmp_path, dict(h=0.005, radius=0.01))] == [0.0025]
+    assert "run again with --h 0.0025 and the same options" in demo.mesh_lines(found[1:2])[-1]
 
 
 def test_column_collapse_quick_mesh_study(tmp_path, monkeypatch, capsys):
