@@ -34,3 +34,12 @@ def test_convergence_page_quotes_the_silo_studies():
     ]
     missing = [s for s in quoted if s not in page]
     assert not missing, f"docs/convergence.md does not quote docs/silo.json's {missing}"
+    # The README quotes the default law on the three finest meshes.
+    finest = sorted(default, key=lambda r: r["h"])[:3]
+    readme = " ".join((DOCS.parent / "README.md").read_text().split())  # lines joined
+    quoted = [
+        _series(finest, "flow_rate"),
+        *(_series(finest, k, 1e3) for k in ("edge_band_width", "wall_band_width")),
+    ]
+    missing = [s for s in quoted if s not in readme]
+    assert not missing, f"README.md does not quote docs/silo.json's {missing}"
