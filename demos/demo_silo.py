@@ -45,6 +45,7 @@ from mpi4py import MPI
 from scipy.spatial import cKDTree
 
 from dolfin_mpm.averaging import LAWS, WEIGHTS
+from dolfin_mpm.core.seeding import reference_points
 from dolfin_mpm.explicit.options import Options
 from dolfin_mpm.post.measure import bin_sums, fwhm, jump_width, rise_width
 from dolfin_mpm.post.plotting import figure
@@ -391,6 +392,7 @@ def run(h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, width=0.2, heig
         "stress": stress,
         "quadrature": quadrature,
         "courant": courant,
+        "ppc": ppc,
         "wall_friction": wall_friction,
         "shift": shift,
         "edge_cell": edge_cell,
@@ -620,6 +622,8 @@ STUDIES = {
         ),
         *(dict(h=0.0025, radius=5e-3, courant=c) for c in (COURANT, COURANT / 2)),
     ],
+    # The points per triangle on fixed meshes: h = 10 mm with 16 has the points of h = 5 mm with 4.
+    "points": [dict(h=h, radius=r, ppc=p) for h in (0.01, 0.005) for r in (0.0, 5e-3) for p in (4, 9, 16)],
     # The non-local laws with the positive-definite weight beside the local model.
     "laws": [
         *(dict(h=h, radius=0.0) for h in MESHES),
@@ -644,7 +648,7 @@ ARRAYS = (
 
 def run_key(
     h=0.01, radius=5e-3, weight="cubic", wall_friction=20.0, shift=0.0, edge_cell=None, split=(1, 1),
-    law="max", m=None, volumetric="nodal", stress="cell", quadrature="cell", courant=COURANT,
+    law="max", m=None, volumetric="nodal", stress="cell", quadrature="cell", courant=COURANT, ppc=4,
 ) -> str:  # fmt: skip
     """Name of a stored run: the study parameters; every other setting is :func:`run`'s default."""
     shifted = f"_shift{shift:g}" if shift else ""
@@ -657,7 +661,8 @@ def run_key(
         + (f"_{quadrature}-quadrature" if quadrature != "cell" else "")
     )
     step = f"_courant{courant:g}" if courant != COURANT else ""
-    rest = f"{shifted}{edges}{rule}{numerics}{step}"
+    points = f"_ppc{ppc}" if ppc != 4 else ""
+    rest = f"{shifted}{edges}{rule}{numerics}{step}{points}"
     return f"h{1e3 * h:g}mm_r{1e3 * radius:g}mm_{weight}_wall{wall_friction:g}{rest}"
 
 
@@ -1039,6 +1044,7 @@ def report(folder: Path, path: Path) -> str:
         shifted += f" ({1e3 * r['edge_cell']:g} at the edges)" if r.get("edge_cell") else ""
         shifted += f" (split {r['split'][0]} x {r['split'][1]})" if r.get("split") else ""
         shifted += f" (Courant {courant_of(r):g})" if courant_of(r) != COURANT else ""
+        shifted += f" ({r['ppc']} per triangle)" if r.get("ppc", 4) != 4 else ""
         return (
             f"| {1e3 * r['h']:g}{shifted} | {1e3 * r['radius']:g} | {r['weight']} | {r['wall_friction']:g} "
             f"| {r['flow_rate']:.1f} | {r['e_vp_bar_max']:.1f} "
@@ -1100,6 +1106,8 @@ def report(folder: Path, path: Path) -> str:
             out += [*split_lines(runs), ""]
         if name == "timestep":
             out += [*timestep_lines(runs), ""]
+        if name == "points":
+            out += [*points_lines(runs, studies["meshes"]), ""]
         if name == "friction":
             out += [
                 "| wall friction [°] | flow rate [kg/s/m] | corner speed [m/s] | base slip [m/s] "
@@ -1165,6 +1173,55 @@ def write_json(runs, path: Path) -> None:
         listed = "timestep_runs" if row["courant"] != COURANT else listed
         rows[listed].append({k: row[k] for k in JSON_FIELDS if row.get(k) is not None})
     path.write_text(json.dumps({"default_law": "max", "numerics": NUMERICS, **rows}, indent=1))
+
+
+def points_lines(runs, meshes) -> list[str]:
+    """Lines of Markdown: each mesh and model against the particles per triangle, with the changes.
+
+    ``meshes``: the mesh study's runs (4 particles per triangle), against which a run with
+    ``4 k^2`` per triangle on ``h`` is set beside the one with 4 on ``h / k``: the same points,
+    a finer grid.
+    """
+    out = [
+        "| model | h [mm] | particles per triangle | spacing [mm] | points within r | flow rate [kg/s/m] "
+        "| edge band [mm] | stagnant band [mm] | wall band [mm] | iterations/step | time [s] |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    changes, groups = [], {}
+    for r in runs:
+        groups.setdefault((r["radius"], r["h"]), []).append(r)
+    for (radius, h), rs in groups.items():
+        rs = sorted(rs, key=lambda r: r.get("ppc", 4))
+        model = "local" if radius == 0 else f"r = {1e3 * radius:g} mm"
+        for r in rs:
+            ppc = r.get("ppc", 4)
+            within = f"{2.0 * math.pi * ppc * (radius / h) ** 2:.0f}" if radius > 0 else "-"
+            out.append(
+                f"| {model} | {1e3 * h:g} | {ppc} | {1e3 * h / math.sqrt(2 * ppc):.2f} | {within} "
+                f"| {r['flow_rate']:.1f} | {_mm(r, 'edge_band_width')} | {_mm(r, 'stagnant_band_width')} "
+                f"| {_mm(r, 'wall_band_width')} | {r['mean_iterations']:.2f} | {r['seconds']:.0f}{ranks(r)} |"
+            )
+        steps = " -> ".join(str(r.get("ppc", 4)) for r in rs)
+        rates = ", ".join(_change(a["flow_rate"], b["flow_rate"]) for a, b in itertools.pairwise(rs))
+        changes.append(f"- {model}, h = {1e3 * h:g} mm, {steps} per triangle: flow rate {rates}")
+        for r in rs:
+            k = math.isqrt(r.get("ppc", 4) // 4)
+            finer = [m for m in meshes if k > 1 and 4 * k * k == r.get("ppc", 4) and m["radius"] == radius
+                     and math.isclose(m["h"], h / k)]  # fmt: skip
+            for m in finer:
+                changes.append(
+                    f"- {model}, the same points on a grid {k} times finer: {r['ppc']} per triangle on "
+                    f"h = {1e3 * h:g} mm {r['flow_rate']:.1f}, 4 on h = {1e3 * m['h']:g} mm "
+                    f"{m['flow_rate']:.1f} kg/s/m ({_change(r['flow_rate'], m['flow_rate'])})"
+                )
+    return [
+        *out,
+        "",
+        "spacing: of the points, h / sqrt(2 ppc); points within r: 2 pi ppc (r / h)^2, the points "
+        "a non-local average sums over.",
+        "",
+        *changes,
+    ]
 
 
 def timestep_lines(runs) -> list[str]:
@@ -1356,6 +1413,7 @@ def main():
     parser.add_argument(
         "--courant", type=float, default=COURANT, help="the time step's Courant factor, in (0, 1]"
     )
+    parser.add_argument("--ppc", type=int, default=4, help="particles per triangle: 1, 4, 9, 16, ...")
     parser.add_argument("--output", type=Path, default=Path("results/silo"))
     parser.add_argument("--report", type=Path, help="write the Markdown report of the stored studies here")
     parser.add_argument("--force", action="store_true", help="run again the runs that are stored")
@@ -1368,6 +1426,10 @@ def main():
         Options(courant=args.courant)
     except ValueError as e:
         parser.error(f"--courant: {e}")
+    try:
+        reference_points(2, args.ppc)
+    except ValueError as e:
+        parser.error(f"--ppc: {e}")
     if min(args.split) < 1:
         parser.error(f"--split: KX and KY must be whole numbers >= 1, got {' '.join(map(str, args.split))}")
     if args.study is None and args.report is None:
@@ -1385,6 +1447,7 @@ def main():
                 stress=args.stress,
                 quadrature=args.quadrature,
                 courant=args.courant,
+                ppc=args.ppc,
             )
         ]
     elif args.study is None:

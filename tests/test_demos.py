@@ -175,6 +175,31 @@ def test_silo_time_step_follows_the_courant_factor(monkeypatch, capsys):
     assert demo._spread([0.04, 0.05]) == "25 %" and demo._spread([0.04, float("nan")]) == "-"
 
 
+def test_silo_points_per_triangle_study(monkeypatch, capsys):
+    """Runs are named by their points per triangle; the table sets 16 on h beside 4 on h / 2."""
+    demo = load("demo_silo")
+    r = demo.run(h=0.025, radius=0.0, ppc=9, t_end=0.01, t_settle=0.005, progress=False)
+    fill = demo.run(h=0.025, radius=0.0, t_end=0.01, t_settle=0.005, progress=False)
+    assert r["ppc"] == 9 and fill["ppc"] == 4 and r["mass_initial"] == pytest.approx(fill["mass_initial"])
+    assert demo.run_key(h=0.01, radius=5e-3, ppc=16) == "h10mm_r5mm_cubic_wall20_ppc16"
+    assert demo.run_key(h=0.01, radius=5e-3, ppc=4) == demo.run_key(h=0.01, radius=5e-3)
+    run = lambda h, ppc, q: dict(  # noqa: E731
+        h=h, radius=5e-3, ppc=ppc, flow_rate=q, edge_band_width=0.03, mean_iterations=2.0, seconds=1.0
+    )
+    lines = demo.points_lines([run(0.01, 4, 100.0), run(0.01, 16, 110.0)], [run(0.005, 4, 121.0)])
+    assert lines[2] == "| r = 5 mm | 10 | 4 | 3.54 | 6 | 100.0 | 30.0 | - | - | 2.00 | 1 |"
+    assert lines[3] == "| r = 5 mm | 10 | 16 | 1.77 | 25 | 110.0 | 30.0 | - | - | 2.00 | 1 |"
+    assert "- r = 5 mm, h = 10 mm, 4 -> 16 per triangle: flow rate +10.0 %" in lines
+    assert (
+        "- r = 5 mm, the same points on a grid 2 times finer: 16 per triangle on h = 10 mm 110.0, "
+        "4 on h = 5 mm 121.0 kg/s/m (+10.0 %)"
+    ) in lines
+    monkeypatch.setattr("sys.argv", ["demo_silo.py", "--ppc", "5"])
+    with pytest.raises(SystemExit) as stop:
+        demo.main()
+    assert stop.value.code == 2 and "--ppc: ppc must be a square number" in capsys.readouterr().err
+
+
 def test_silo_with_cells_refined_at_the_outlet_edges():
     demo = load("demo_silo")
     r = demo.run(h=0.025, radius=0.0, edge_cell=0.0125, t_end=0.05, t_settle=0.005, progress=False)
