@@ -958,6 +958,29 @@ def mesh_runs(folder: Path, params: dict) -> list[dict]:
     return [r for r in found if r is not None]
 
 
+#: The points within r from which the non-local silo's flow rate is converged in the points:
+#: 57 within r move it by 0.2 % on h = 5 mm (9 -> 16 per triangle) and 0.4 % on 10 mm (36 -> 64),
+#: 100 by 0.3 % on 2.5 mm (4 -> 9); 25 leave it 3 % low (docs/numerics.md).
+POINTS_WITHIN_R = 50
+
+
+def points_within(h: float, radius: float, ppc: int) -> float:
+    """Points within ``radius`` [m] of a point, ``2 pi ppc (r / h)^2`` (two triangles to a square h)."""
+    return 2.0 * math.pi * ppc * (radius / h) ** 2
+
+
+def points_advice(h: float, radius: float, ppc: int) -> list[str]:
+    """Advice where a run's non-local average sums over too few points to converge in them."""
+    within = points_within(h, radius, ppc)
+    if radius <= 0.0 or within >= POINTS_WITHIN_R:
+        return []
+    n = math.ceil(math.sqrt(POINTS_WITHIN_R / points_within(h, radius, 1)))  # n^2 per triangle
+    return [
+        f"  points within r: {within:.0f}; the flow rate converges in the points from about "
+        f"{POINTS_WITHIN_R} (docs/numerics.md): --ppc {n * n} gives {points_within(h, radius, n * n):.0f}"
+    ]
+
+
 def mesh_lines(runs) -> list[str]:
     """What a single run is worth: the same model on the other meshes stored, and the changes.
 
@@ -1195,7 +1218,7 @@ def points_lines(runs, meshes) -> list[str]:
         model = "local" if radius == 0 else f"r = {1e3 * radius:g} mm"
         for r in rs:
             ppc = r.get("ppc", 4)
-            within = f"{2.0 * math.pi * ppc * (radius / h) ** 2:.0f}" if radius > 0 else "-"
+            within = f"{points_within(h, radius, ppc):.0f}" if radius > 0 else "-"
             out.append(
                 f"| {model} | {1e3 * h:g} | {ppc} | {1e3 * h / math.sqrt(2 * ppc):.2f} | {within} "
                 f"| {r['flow_rate']:.1f} | {_mm(r, 'edge_band_width')} | {_mm(r, 'stagnant_band_width')} "
@@ -1489,6 +1512,8 @@ def main():
             )
         if args.study is None:
             print("\n".join(mesh_lines(mesh_runs(args.output, params))))
+            for line in points_advice(args.h, args.radius, args.ppc):
+                print(line)
     if args.report is not None and MPI.COMM_WORLD.rank == 0:
         report(args.output, args.report)
         print(f"wrote {args.report}")
