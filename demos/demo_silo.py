@@ -958,27 +958,39 @@ def mesh_runs(folder: Path, params: dict) -> list[dict]:
     return [r for r in found if r is not None]
 
 
-#: The points within r from which the non-local silo's flow rate is converged in the points:
-#: 57 within r move it by 0.2 % on h = 5 mm (9 -> 16 per triangle) and 0.4 % on 10 mm (36 -> 64),
-#: 100 by 0.3 % on 2.5 mm (4 -> 9); 25 leave it 3 % low (docs/numerics.md).
-POINTS_WITHIN_R = 50
-
-
 def points_within(h: float, radius: float, ppc: int) -> float:
     """Points within ``radius`` [m] of a point, ``2 pi ppc (r / h)^2`` (two triangles to a square h)."""
     return 2.0 * math.pi * ppc * (radius / h) ** 2
 
 
-def points_advice(h: float, radius: float, ppc: int) -> list[str]:
-    """Advice where a run's non-local average sums over too few points to converge in them."""
-    within = points_within(h, radius, ppc)
-    if radius <= 0.0 or within >= POINTS_WITHIN_R:
-        return []
-    n = math.ceil(math.sqrt(POINTS_WITHIN_R / points_within(h, radius, 1)))  # n^2 per triangle
-    return [
-        f"  points within r: {within:.0f}; the flow rate converges in the points from about "
-        f"{POINTS_WITHIN_R} (docs/numerics.md): --ppc {n * n} gives {points_within(h, radius, n * n):.0f}"
-    ]
+#: The points per triangle a run is compared with (squares: see ``dm.seed``).
+PPC = (1, 4, 9, 16, 36, 64)
+
+
+def points_runs(folder: Path, params: dict) -> list[dict]:
+    """The stored runs of the model and mesh of ``params`` with any count of :data:`PPC`, fewest first."""
+    found = [stored_run(folder, **{**params, "ppc": n}) for n in PPC]
+    return [r for r in found if r is not None]
+
+
+def points_advice(runs, ppc: int) -> list[str]:
+    """The flow rate of one model and mesh against its points per triangle, or what to run to see it.
+
+    ``runs``: :func:`points_runs`; ``ppc``: the run's own count. Each change is from the next
+    smaller count stored.
+    """
+    if len(runs) < 2:
+        more = PPC[PPC.index(ppc) + 1] if ppc in PPC[:-1] else (math.isqrt(ppc) + 1) ** 2
+        return [
+            f"  {ppc} points per triangle: the points are a discretisation of their own (on h = 10 and 5 mm "
+            f"4 per triangle left the flow rate 1.5-3 % below 9, docs/numerics.md); run again with "
+            f"--ppc {more} to see how far this one moves"
+        ]
+    change = lambda b, r: "" if b is None else f" ({_change(b['flow_rate'], r['flow_rate'])})"  # noqa: E731
+    rates = ", ".join(
+        f"{r.get('ppc', 4)}: {r['flow_rate']:.1f}{change(b, r)}" for b, r in zip([None, *runs], runs)
+    )
+    return [f"  this model and mesh with other points per triangle: flow rate [kg/s/m] {rates}"]
 
 
 def mesh_lines(runs) -> list[str]:
@@ -1512,8 +1524,7 @@ def main():
             )
         if args.study is None:
             print("\n".join(mesh_lines(mesh_runs(args.output, params))))
-            for line in points_advice(args.h, args.radius, args.ppc):
-                print(line)
+            print("\n".join(points_advice(points_runs(args.output, params), args.ppc)))
     if args.report is not None and MPI.COMM_WORLD.rank == 0:
         report(args.output, args.report)
         print(f"wrote {args.report}")
