@@ -623,7 +623,13 @@ STUDIES = {
         *(dict(h=0.0025, radius=5e-3, courant=c) for c in (COURANT, COURANT / 2)),
     ],
     # The points per triangle on fixed meshes: h = 10 mm with 16 has the points of h = 5 mm with 4.
-    "points": [dict(h=h, radius=r, ppc=p) for h in (0.01, 0.005) for r in (0.0, 5e-3) for p in (4, 9, 16)],
+    "points": [
+        *(dict(h=h, radius=r, ppc=p) for h in (0.01, 0.005) for r in (0.0, 5e-3) for p in (4, 9, 16)),
+        *(dict(h=0.01, radius=5e-3, ppc=p) for p in (36, 64)),
+        dict(h=0.01, radius=0.0, ppc=64),
+        *(dict(h=0.0025, radius=5e-3, ppc=p) for p in (4, 9)),  # 9: 16 min on two ranks
+        *(dict(h=0.005, radius=10e-3, ppc=p) for p in (4, 9)),
+    ],
     # The non-local laws with the positive-definite weight beside the local model.
     "laws": [
         *(dict(h=h, radius=0.0) for h in MESHES),
