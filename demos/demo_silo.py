@@ -1217,14 +1217,14 @@ def write_json(runs, path: Path) -> None:
 
 
 def points_lines(runs, meshes) -> list[str]:
-    """Lines of Markdown: each mesh and model against the particles per triangle, with the changes.
+    """Lines of Markdown: each mesh and model against the points per triangle, with the changes.
 
-    ``meshes``: the mesh study's runs (4 particles per triangle), against which a run with
+    ``meshes``: the mesh study's runs (4 points per triangle), against which a run with
     ``4 k^2`` per triangle on ``h`` is set beside the one with 4 on ``h / k``: the same points,
     a finer grid.
     """
     out = [
-        "| model | h [mm] | particles per triangle | spacing [mm] | points within r | flow rate [kg/s/m] "
+        "| model | h [mm] | points per triangle | spacing [mm] | points within r | flow rate [kg/s/m] "
         "| edge band [mm] | stagnant band [mm] | wall band [mm] | iterations/step | time [s] |",
         "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
@@ -1246,10 +1246,10 @@ def points_lines(runs, meshes) -> list[str]:
         rates = ", ".join(_change(a["flow_rate"], b["flow_rate"]) for a, b in itertools.pairwise(rs))
         changes.append(f"- {model}, h = {1e3 * h:g} mm, {steps} per triangle: flow rate {rates}")
         for r in rs:
-            k = math.isqrt(r.get("ppc", 4) // 4)
-            finer = [m for m in meshes if k > 1 and 4 * k * k == r.get("ppc", 4) and m["radius"] == radius
-                     and math.isclose(m["h"], h / k)]  # fmt: skip
-            for m in finer:
+            k = math.isqrt(r.get("ppc", 4) // 4)  # 4 k^2 per triangle: the points of 4 on h / k
+            if k < 2 or 4 * k * k != r["ppc"]:
+                continue
+            for m in (m for m in meshes if m["radius"] == radius and math.isclose(m["h"], h / k)):
                 changes.append(
                     f"- {model}, the same points on a grid {k} times finer: {r['ppc']} per triangle on "
                     f"h = {1e3 * h:g} mm {r['flow_rate']:.1f}, 4 on h = {1e3 * m['h']:g} mm "
@@ -1454,7 +1454,7 @@ def main():
     parser.add_argument(
         "--courant", type=float, default=COURANT, help="the time step's Courant factor, in (0, 1]"
     )
-    parser.add_argument("--ppc", type=int, default=4, help="particles per triangle: 1, 4, 9, 16, ...")
+    parser.add_argument("--ppc", type=int, default=4, help="points per triangle: 1, 4, 9, 16, ...")
     parser.add_argument("--output", type=Path, default=Path("results/silo"))
     parser.add_argument("--report", type=Path, help="write the Markdown report of the stored studies here")
     parser.add_argument("--force", action="store_true", help="run again the runs that are stored")
