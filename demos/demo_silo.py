@@ -629,6 +629,9 @@ STUDIES = {
         dict(h=0.01, radius=0.0, ppc=64),
         *(dict(h=0.0025, radius=5e-3, ppc=p) for p in (4, 9)),  # 9: 16 min on two ranks
         *(dict(h=0.005, radius=10e-3, ppc=p) for p in (4, 9)),
+        # r = 2.5 mm with about 57 points within r, as 9 per triangle give r = 5 mm on h = 5 mm.
+        *(dict(h=0.005, radius=2.5e-3, ppc=p) for p in (4, 36)),
+        *(dict(h=0.0025, radius=2.5e-3, ppc=p) for p in (4, 9)),
     ],
     # The non-local laws with the positive-definite weight beside the local model.
     "laws": [
