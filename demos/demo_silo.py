@@ -958,13 +958,15 @@ def _change(before: float, after: float) -> str:
     return f"{100.0 * (after / before - 1.0):+.1f} %"
 
 
-def mesh_runs(folder: Path, params: dict) -> list[dict]:
-    """The stored runs of the model of ``params`` on meshes of ``h`` halved or doubled up to three times.
-
-    Coarsest first; each run is the one ``params`` names with only ``h`` changed.
-    """
-    found = [stored_run(folder, **{**params, "h": params["h"] * 2.0**k}) for k in range(3, -4, -1)]
+def stored_variants(folder: Path, params: dict, name: str, values) -> list[dict]:
+    """The stored runs that ``params`` names with only ``name`` changed, to each of ``values`` in turn."""
+    found = [stored_run(folder, **{**params, name: value}) for value in values]
     return [r for r in found if r is not None]
+
+
+def mesh_runs(folder: Path, params: dict) -> list[dict]:
+    """The stored runs of the model of ``params`` on h halved or doubled up to three times, coarsest first."""
+    return stored_variants(folder, params, "h", [params["h"] * 2.0**k for k in range(3, -4, -1)])
 
 
 def points_within(h: float, radius: float, ppc: int) -> float:
@@ -977,9 +979,8 @@ PPC = (1, 4, 9, 16, 36, 64)
 
 
 def points_runs(folder: Path, params: dict) -> list[dict]:
-    """The stored runs of the model and mesh of ``params`` with any count of :data:`PPC`, fewest first."""
-    found = [stored_run(folder, **{**params, "ppc": n}) for n in PPC]
-    return [r for r in found if r is not None]
+    """The stored runs of the model and mesh of ``params``: its own count and :data:`PPC`, fewest first."""
+    return stored_variants(folder, params, "ppc", sorted({*PPC, params.get("ppc", 4)}))
 
 
 def points_advice(runs, ppc: int) -> list[str]:
